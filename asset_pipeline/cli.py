@@ -62,6 +62,144 @@ def sample(
         print(d)
 
 
+@app.command("eval-gen")
+def eval_gen(
+    pred: Path = typer.Option(..., "--pred", help="Folder of predicted bundles (<id>/object.json)."),
+    gt: Path = typer.Option(..., "--gt", help="Folder of ground-truth bundles, matched by <id>."),
+    out: Path = typer.Option(None, "--out", help="JSON file to write (default: PRED/metrics.json)."),
+    n_states: int = typer.Option(5, help="Articulated states sampled for AS- metrics."),
+    n_points: int = typer.Option(10_000, help="Surface points per object for dCD."),
+    seed: int = typer.Option(0, help="Seed of the surface sampling."),
+) -> None:
+    """Generation metrics (RS/AS dgIoU, dcDist, dCD, AOR) of predictions against ground truth."""
+    import json
+
+    from generator.articulated import atomic_write_bytes
+    from generator.metrics import evaluate_dirs, format_table
+
+    results = evaluate_dirs(pred, gt, n_states=n_states, n_points=n_points, seed=seed)
+    Console().print(format_table(results))
+    path = out or pred / "metrics.json"
+    atomic_write_bytes(path, json.dumps(results, indent=2, allow_nan=False).encode())
+    console.print(f"wrote {path}")
+    if results["missing"] or results.get("failed"):
+        raise typer.Exit(1)
+
+
+def _build_one(bundle: Path, height: float | None, validate: bool, repair: bool) -> tuple[str, str]:
+    """Build (and validate) one bundle; return (status, detail)."""
+    from asset_pipeline.build import build_asset
+
+    result = build_asset(bundle, height=height)
+    detail = f"{sum(result.pieces.values())} pieces, {result.seconds:.1f} s"
+    if not validate:
+        return "built", detail
+    from asset_pipeline.validate import validate_asset
+
+    report = validate_asset(bundle, repair=repair)
+    if not report.ok:
+        failed = "; ".join(f"{c.key}" for c in report.failed_checks[:4])
+        return report.status, f"{detail}; failed: {failed}"
+    return report.status, detail
+
+
+@app.command()
+def build(
+    paths: list[Path] = typer.Argument(..., help="Bundle folders, or folders of bundles."),
+    height: float = typer.Option(None, help="Metric height (m) for bundles without a scale."),
+    validate: bool = typer.Option(True, "--validate/--no-validate", help="Validate in SAPIEN."),
+    repair: bool = typer.Option(True, "--repair/--no-repair", help="Repair what validation finds."),
+) -> None:
+    """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, asset.json.
+
+    Goes on past bad bundles, reports each at the end and exits 1 if any failed.
+    """
+    from generator.articulated import ObjectModelError, find_bundles
+
+    bundles: list[Path] = []
+    bad: list[tuple[str, str]] = []
+    for p in paths:
+        try:
+            found = find_bundles(p)
+        except ObjectModelError as e:
+            bad.append((str(p), str(e)))
+            continue
+        if not found:
+            bad.append((str(p), "no bundle (object.json) found here"))
+        bundles.extend(found)
+    table = Table(title="pact build")
+    for col in ("asset", "status", "detail"):
+        table.add_column(col)
+    for b in bundles:
+        try:
+            status, detail = _build_one(b, height, validate, repair)
+        except Exception as e:  # one bad bundle never stops the batch
+            logging.getLogger("pact.build").debug("build of %s failed", b, exc_info=True)
+            status, detail = "failed", f"{type(e).__name__}: {e}"
+        if status == "failed":
+            bad.append((str(b), detail))
+        colour = {"failed": "red", "repaired": "yellow"}.get(status, "green")
+        table.add_row(str(b), f"[{colour}]{status}[/{colour}]", detail)
+    Console().print(table)
+    for where, why in bad:
+        console.print(f"[red]failed[/red] {where}: {why}")
+    if bad:
+        raise typer.Exit(1)
+
+
+@app.command("ls")
+def ls(
+    out: Path = typer.Argument(..., help="Output folder with registry.sqlite (or the file)."),
+    status: str = typer.Option(None, help="ok, repaired or failed."),
+    category: str = typer.Option(None, help="Category filter."),
+    joint_type: str = typer.Option(None, help="prismatic or revolute."),
+) -> None:
+    """List catalogued assets."""
+    from asset_pipeline.registry import Catalog, CatalogError, format_table
+
+    try:
+        with Catalog(out, readonly=True) as cat:
+            rows = cat.query(status=status, category=category, joint_type=joint_type)
+    except CatalogError as e:
+        console.print(f"[red]error:[/red] {e}")
+        raise typer.Exit(2) from e
+    Console().print(format_table(rows))
+
+
+@app.command("import")
+def import_(
+    path: Path = typer.Argument(..., help="A PAct or SINGAPO output (object.json) or a folder of them."),
+    out: Path = typer.Option(..., "--out", "-o", help="Folder to write bundles into."),
+    up: str = typer.Option("y", help="Up axis of the source meshes (y for SINGAPO/PAct)."),
+    category: str = typer.Option(None, help="Category to record when the source has none."),
+    overwrite: bool = typer.Option(False, help="Replace existing bundles."),
+) -> None:
+    """Import official PAct / SINGAPO outputs (diffuse_tree object.json) as bundles."""
+    from asset_pipeline.importers import ImportFormatError, ImportOptions, import_path
+
+    try:
+        written = import_path(
+            path, out, ImportOptions(up=up, category=category, overwrite=overwrite)
+        )
+    except ImportFormatError as e:
+        console.print(f"[red]error:[/red] {e}")
+        raise typer.Exit(2) from e
+    for d in written:
+        print(d)
+
+
+@app.command()
+def gallery(out: Path = typer.Argument(..., help="Output folder of a convert or build run.")) -> None:
+    """Write OUT/index.html: inputs, previews, joints and validation status per asset."""
+    from asset_pipeline.gallery import write_gallery
+
+    try:
+        print(write_gallery(out))
+    except FileNotFoundError as e:
+        console.print(f"[red]error:[/red] {e}")
+        raise typer.Exit(2) from e
+
+
 def main() -> None:
     app()
 

@@ -1,0 +1,682 @@
+"""The asset catalog: one SQLite file, ``OUT/registry.sqlite``, beside the assets.
+
+Tables (schema version :data:`SCHEMA_VERSION`, stored in ``PRAGMA user_version``):
+
+``assets``  one row per asset id: where it came from (``source_image``,
+            ``source_hash`` = the input item's hash, ``settings_hash`` = the hash of
+            the build settings), who made it (``generator``, ``generator_version``),
+            what it is (``category``, ``part_count`` = parts including the base,
+            ``joint_types`` = comma-separated sorted distinct movable joint types,
+            ``size_x/y/z`` = rest bounding-box extents in metres), how it went
+            (``status`` 'ok' | 'repaired' | 'failed', ``failure_reason``,
+            ``repairs`` = JSON list, ``stage_seconds`` = JSON object), ``path`` (the
+            asset folder, relative to the catalog's folder when inside it) and
+            ``created_at`` (UTC ISO-8601 time the row was written).
+``parts``   per part: ``name``, ``semantic``, ``joint_type`` (NULL for the base),
+            ``lower``, ``upper`` (metres or radians), ``mass`` (kg).
+``checks``  per validation check: ``name``, ``passed`` (0/1), ``value`` and
+            ``tolerance`` (numbers, or JSON text when not numeric), ``detail``.
+
+Concurrency: WAL journal; one writer at a time (the batch driver) and any number
+of readers (``pact ls``, the gallery). Every write of an asset is one transaction,
+so a reader never sees an asset without its parts and checks.
+
+Resumable batches: :meth:`Catalog.is_done` is true only for an asset built from the
+same input and settings whose status is 'ok' or 'repaired' and whose folder still
+exists. Failed items are retried on a rerun.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sqlite3
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from rich.table import Table
+
+log = logging.getLogger(__name__)
+
+CATALOG_NAME = "registry.sqlite"
+SCHEMA_VERSION = 1
+STATUSES = ("ok", "repaired", "failed")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS assets (
+    id                TEXT PRIMARY KEY,
+    source_image      TEXT,
+    source_hash       TEXT,
+    settings_hash     TEXT,
+    generator         TEXT,
+    generator_version TEXT,
+    category          TEXT NOT NULL DEFAULT 'unknown',
+    part_count        INTEGER,
+    joint_types       TEXT NOT NULL DEFAULT '',
+    size_x            REAL,
+    size_y            REAL,
+    size_z            REAL,
+    status            TEXT NOT NULL CHECK (status IN ('ok', 'repaired', 'failed')),
+    failure_reason    TEXT,
+    repairs           TEXT NOT NULL DEFAULT '[]',
+    stage_seconds     TEXT NOT NULL DEFAULT '{}',
+    path              TEXT,
+    created_at        TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS assets_status ON assets (status);
+CREATE INDEX IF NOT EXISTS assets_category ON assets (category);
+CREATE TABLE IF NOT EXISTS parts (
+    asset_id   TEXT NOT NULL REFERENCES assets (id) ON DELETE CASCADE,
+    name       TEXT NOT NULL,
+    semantic   TEXT,
+    joint_type TEXT,
+    lower      REAL,
+    upper      REAL,
+    mass       REAL,
+    PRIMARY KEY (asset_id, name)
+);
+CREATE INDEX IF NOT EXISTS parts_joint_type ON parts (joint_type);
+CREATE TABLE IF NOT EXISTS checks (
+    asset_id  TEXT NOT NULL REFERENCES assets (id) ON DELETE CASCADE,
+    name      TEXT NOT NULL,
+    passed    INTEGER NOT NULL,
+    value,
+    tolerance,
+    detail    TEXT,
+    PRIMARY KEY (asset_id, name)
+);
+"""
+
+
+class CatalogError(RuntimeError):
+    """The catalog file is missing, unreadable or of an unsupported schema."""
+
+
+# --------------------------------------------------------------------------- records
+
+
+@dataclass(frozen=True)
+class PartRecord:
+    name: str
+    semantic: str | None = None
+    joint_type: str | None = None
+    lower: float | None = None
+    upper: float | None = None
+    mass: float | None = None
+
+
+@dataclass(frozen=True)
+class CheckRecord:
+    name: str
+    passed: bool
+    value: Any = None
+    tolerance: Any = None
+    detail: str | None = None
+
+
+@dataclass(frozen=True)
+class AssetRecord:
+    """One ``assets`` row. ``size`` is (x, y, z) in metres; see the module docstring."""
+
+    id: str
+    status: str
+    source_image: str | None = None
+    source_hash: str | None = None
+    settings_hash: str | None = None
+    generator: str | None = None
+    generator_version: str | None = None
+    category: str = "unknown"
+    part_count: int | None = None
+    joint_types: str = ""
+    size: tuple[float | None, float | None, float | None] = (None, None, None)
+    failure_reason: str | None = None
+    repairs: tuple[str, ...] = ()
+    stage_seconds: Mapping[str, float] = field(default_factory=dict)
+    path: str | None = None
+    created_at: str | None = None
+
+
+@dataclass(frozen=True)
+class AssetRow(AssetRecord):
+    """An asset as read back, with its parts and checks (empty unless requested)."""
+
+    parts: tuple[PartRecord, ...] = ()
+    checks: tuple[CheckRecord, ...] = ()
+
+    @property
+    def failed_checks(self) -> list[CheckRecord]:
+        return [c for c in self.checks if not c.passed]
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def _db_value(v: Any) -> Any:
+    """A check's value/tolerance for SQLite: numbers as numbers, anything else as JSON."""
+    if v is None:
+        return None
+    if isinstance(v, bool):
+        return int(v)
+    if isinstance(v, (int, float)):
+        return float(v) if isinstance(v, float) and not math.isfinite(v) else v
+    return json.dumps(v)
+
+
+def _py_value(v: Any) -> Any:
+    if isinstance(v, str):
+        try:
+            return json.loads(v)
+        except json.JSONDecodeError:
+            return v
+    return v
+
+
+# --------------------------------------------------------------------------- catalog
+
+
+def catalog_path(out: str | Path) -> Path:
+    """The catalog file of an output folder (or ``out`` itself when it names a file)."""
+    out = Path(out)
+    return out if out.suffix in (".sqlite", ".db") else out / CATALOG_NAME
+
+
+class Catalog:
+    """The SQLite catalog; use as a context manager.
+
+    ``path``: the output folder (the file is ``path/registry.sqlite``) or the file
+    itself. ``readonly=True`` never creates or changes the file and fails with
+    :class:`CatalogError` when it does not exist.
+    """
+
+    def __init__(self, path: str | Path, readonly: bool = False) -> None:
+        self.path = catalog_path(path)
+        self.root = self.path.parent
+        self.readonly = readonly
+        self._conn: sqlite3.Connection | None = None
+
+    # ---- connection
+    def open(self) -> Catalog:
+        if self._conn is not None:
+            return self
+        if self.readonly:
+            if not self.path.is_file():
+                raise CatalogError(
+                    f"{self.path}: no catalog here (build assets into this folder first)"
+                )
+            uri = f"{self.path.resolve().as_uri()}?mode=ro"
+            conn = sqlite3.connect(uri, uri=True, timeout=30.0, isolation_level=None)
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            conn = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        try:
+            conn.execute("PRAGMA busy_timeout = 30000")
+            if not self.readonly:
+                conn.execute("PRAGMA journal_mode = WAL")
+                conn.execute("PRAGMA synchronous = NORMAL")
+            conn.execute("PRAGMA foreign_keys = ON")
+            self._check_schema(conn)
+        except sqlite3.DatabaseError as e:
+            conn.close()
+            raise CatalogError(f"{self.path}: not a readable catalog: {e}") from e
+        except BaseException:
+            conn.close()
+            raise
+        self._conn = conn
+        return self
+
+    def _check_schema(self, conn: sqlite3.Connection) -> None:
+        version = conn.execute("PRAGMA user_version").fetchone()[0]
+        if version == SCHEMA_VERSION:
+            return
+        if version > SCHEMA_VERSION:
+            raise CatalogError(
+                f"{self.path}: catalog schema version {version} was written by a newer pact "
+                f"(this one reads version {SCHEMA_VERSION}); upgrade pact or use another output folder"
+            )
+        tables = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'").fetchall()
+        if version == 0 and not tables:
+            if self.readonly:
+                raise CatalogError(f"{self.path}: the catalog is empty (no schema)")
+            # IF NOT EXISTS + one immediate transaction: two processes racing to
+            # create the catalog both succeed.
+            try:
+                conn.executescript(
+                    "BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version = {SCHEMA_VERSION};COMMIT;"
+                )
+            except BaseException:
+                if conn.in_transaction:
+                    conn.execute("ROLLBACK")
+                raise
+            log.info("created catalog %s (schema %d)", self.path, SCHEMA_VERSION)
+            return
+        raise CatalogError(
+            f"{self.path}: catalog schema version {version} is not supported "
+            f"(this pact reads version {SCHEMA_VERSION}); move the file away to start a new catalog"
+        )
+
+    def close(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    def __enter__(self) -> Catalog:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def conn(self) -> sqlite3.Connection:
+        if self._conn is None:
+            self.open()
+        assert self._conn is not None
+        return self._conn
+
+    # ---- paths
+    def _store_path(self, path: str | Path | None) -> str | None:
+        """Asset folders inside the catalog's folder are stored relative to it."""
+        if path is None:
+            return None
+        p = Path(path)
+        try:
+            return p.resolve().relative_to(self.root.resolve()).as_posix()
+        except ValueError:
+            return str(p.resolve())
+
+    def asset_dir(self, row: AssetRecord) -> Path | None:
+        """The absolute asset folder of ``row`` (None when it has no path)."""
+        if row.path is None:
+            return None
+        p = Path(row.path)
+        return p if p.is_absolute() else self.root / p
+
+    # ---- writes
+    def upsert_asset(
+        self,
+        record: AssetRecord,
+        parts: Iterable[PartRecord] = (),
+        checks: Iterable[CheckRecord] = (),
+    ) -> None:
+        """Insert or replace an asset with its parts and checks, in one transaction."""
+        if record.status not in STATUSES:
+            raise ValueError(f"status must be one of {STATUSES}, got {record.status!r}")
+        parts, checks = list(parts), list(checks)
+        sx, sy, sz = record.size
+        row = (
+            record.id,
+            record.source_image,
+            record.source_hash,
+            record.settings_hash,
+            record.generator,
+            record.generator_version,
+            record.category or "unknown",
+            record.part_count,
+            record.joint_types or "",
+            sx,
+            sy,
+            sz,
+            record.status,
+            record.failure_reason,
+            json.dumps(list(record.repairs)),
+            json.dumps(dict(record.stage_seconds)),
+            self._store_path(record.path),
+            record.created_at or _now(),
+        )
+        c = self.conn
+        c.execute("BEGIN IMMEDIATE")
+        try:
+            c.execute("DELETE FROM parts WHERE asset_id = ?", (record.id,))
+            c.execute("DELETE FROM checks WHERE asset_id = ?", (record.id,))
+            c.execute(
+                "INSERT OR REPLACE INTO assets (id, source_image, source_hash, settings_hash, generator,"
+                " generator_version, category, part_count, joint_types, size_x, size_y, size_z, status,"
+                " failure_reason, repairs, stage_seconds, path, created_at)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                row,
+            )
+            c.executemany(
+                "INSERT INTO parts (asset_id, name, semantic, joint_type, lower, upper, mass)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?)",
+                [
+                    (record.id, p.name, p.semantic, p.joint_type, p.lower, p.upper, p.mass)
+                    for p in parts
+                ],
+            )
+            c.executemany(
+                "INSERT INTO checks (asset_id, name, passed, value, tolerance, detail)"
+                " VALUES (?, ?, ?, ?, ?, ?)",
+                [
+                    (
+                        record.id,
+                        k.name,
+                        int(bool(k.passed)),
+                        _db_value(k.value),
+                        _db_value(k.tolerance),
+                        k.detail,
+                    )
+                    for k in checks
+                ],
+            )
+            c.execute("COMMIT")
+        except BaseException:
+            c.execute("ROLLBACK")
+            raise
+
+    def record_failure(
+        self,
+        id: str,
+        reason: str,
+        *,
+        source_image: str | None = None,
+        source_hash: str | None = None,
+        settings_hash: str | None = None,
+        generator: str | None = None,
+        generator_version: str | None = None,
+        category: str = "unknown",
+        stage_seconds: Mapping[str, float] | None = None,
+        path: str | Path | None = None,
+        checks: Iterable[CheckRecord] = (),
+    ) -> None:
+        """Record that building ``id`` failed with ``reason`` (replaces any earlier row)."""
+        rec = AssetRecord(
+            id=id,
+            status="failed",
+            source_image=source_image,
+            source_hash=source_hash,
+            settings_hash=settings_hash,
+            generator=generator,
+            generator_version=generator_version,
+            category=category,
+            failure_reason=reason,
+            stage_seconds=dict(stage_seconds or {}),
+            path=None if path is None else str(path),
+        )
+        self.upsert_asset(rec, (), checks)
+
+    def delete(self, id: str) -> None:
+        c = self.conn
+        c.execute("BEGIN IMMEDIATE")
+        try:
+            c.execute("DELETE FROM assets WHERE id = ?", (id,))
+            c.execute("COMMIT")
+        except BaseException:
+            c.execute("ROLLBACK")
+            raise
+
+    # ---- reads
+    _COLUMNS = (
+        "id, status, source_image, source_hash, settings_hash, generator, generator_version,"
+        " category, part_count, joint_types, size_x, size_y, size_z, failure_reason, repairs,"
+        " stage_seconds, path, created_at"
+    )
+
+    @staticmethod
+    def _row(r: Sequence[Any]) -> AssetRow:
+        return AssetRow(
+            id=r[0],
+            status=r[1],
+            source_image=r[2],
+            source_hash=r[3],
+            settings_hash=r[4],
+            generator=r[5],
+            generator_version=r[6],
+            category=r[7],
+            part_count=r[8],
+            joint_types=r[9] or "",
+            size=(r[10], r[11], r[12]),
+            failure_reason=r[13],
+            repairs=tuple(json.loads(r[14] or "[]")),
+            stage_seconds=json.loads(r[15] or "{}"),
+            path=r[16],
+            created_at=r[17],
+        )
+
+    def _details(self, row: AssetRow) -> AssetRow:
+        parts = tuple(
+            PartRecord(*p)
+            for p in self.conn.execute(
+                "SELECT name, semantic, joint_type, lower, upper, mass FROM parts"
+                " WHERE asset_id = ? ORDER BY rowid",
+                (row.id,),
+            )
+        )
+        checks = tuple(
+            CheckRecord(
+                name=n, passed=bool(ok), value=_py_value(v), tolerance=_py_value(t), detail=d
+            )
+            for n, ok, v, t, d in self.conn.execute(
+                "SELECT name, passed, value, tolerance, detail FROM checks WHERE asset_id = ? ORDER BY rowid",
+                (row.id,),
+            )
+        )
+        return replace(row, parts=parts, checks=checks)
+
+    def get(self, id: str) -> AssetRow | None:
+        """The asset ``id`` with its parts and checks, or None."""
+        r = self.conn.execute(f"SELECT {self._COLUMNS} FROM assets WHERE id = ?", (id,)).fetchone()
+        return None if r is None else self._details(self._row(r))
+
+    def query(
+        self,
+        status: str | None = None,
+        category: str | None = None,
+        joint_type: str | None = None,
+        details: bool = False,
+    ) -> list[AssetRow]:
+        """Assets matching every given filter, sorted by id.
+
+        ``joint_type`` keeps assets with at least one movable part of that type.
+        ``details=True`` also loads parts and checks.
+        """
+        where, args = [], []
+        if status is not None:
+            if status not in STATUSES:
+                raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
+            where.append("status = ?")
+            args.append(status)
+        if category is not None:
+            where.append("category = ?")
+            args.append(category)
+        if joint_type is not None:
+            where.append("id IN (SELECT asset_id FROM parts WHERE joint_type = ?)")
+            args.append(joint_type)
+        sql = f"SELECT {self._COLUMNS} FROM assets"
+        if where:
+            sql += " WHERE " + " AND ".join(where)
+        rows = [self._row(r) for r in self.conn.execute(sql + " ORDER BY id", args)]
+        return [self._details(r) for r in rows] if details else rows
+
+    def is_done(self, id: str, source_hash: str | None, settings_hash: str | None) -> bool:
+        """True when ``id`` was built from the same input and settings and did not fail.
+
+        A failed asset, a changed input or settings hash, or an asset whose folder
+        has gone, all make this False: the batch builds the item again.
+        """
+        r = self.conn.execute(
+            "SELECT status, source_hash, settings_hash, path FROM assets WHERE id = ?", (id,)
+        ).fetchone()
+        if r is None:
+            return False
+        status, src, settings, path = r
+        if status == "failed" or src != source_hash or settings != settings_hash:
+            return False
+        if path is not None:
+            p = Path(path)
+            if not (p if p.is_absolute() else self.root / p).is_dir():
+                return False
+        return True
+
+
+# --------------------------------------------------------------------------- built asset -> records
+
+
+def _first(d: Mapping[str, Any], *keys: str, default: Any = None) -> Any:
+    for k in keys:
+        if k in d:
+            return d[k]
+    return default
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise CatalogError(f"{path}: cannot read: {e}") from e
+
+
+def checks_from_report(report: Mapping[str, Any]) -> list[CheckRecord]:
+    """The checks of a ``report.json`` (a list of check objects or a name -> check map).
+
+    Each check gives ``passed`` (or ``pass``/``ok``), ``value`` (or ``measured``),
+    ``tolerance`` and ``detail`` (or ``message``).
+    """
+    raw = report.get("checks", [])
+    items: list[tuple[str, Mapping[str, Any]]] = []
+    if isinstance(raw, Mapping):
+        items = [
+            (str(k), v if isinstance(v, Mapping) else {"passed": bool(v)}) for k, v in raw.items()
+        ]
+    elif isinstance(raw, list):
+        items = [
+            (str(c.get("name", f"check_{i}")), c)
+            for i, c in enumerate(raw)
+            if isinstance(c, Mapping)
+        ]
+    out = []
+    for name, c in items:
+        detail = _first(c, "detail", "message", "details")
+        out.append(
+            CheckRecord(
+                name=name,
+                passed=bool(_first(c, "passed", "pass", "ok", default=False)),
+                value=_first(c, "value", "measured"),
+                tolerance=_first(c, "tolerance", "tol", "threshold"),
+                detail=None
+                if detail is None
+                else (detail if isinstance(detail, str) else json.dumps(detail)),
+            )
+        )
+    return out
+
+
+def records_from_asset_dir(
+    asset_dir: str | Path, **provenance: Any
+) -> tuple[AssetRecord, list[PartRecord], list[CheckRecord]]:
+    """Catalog records of a built asset folder (``asset.json`` + optional ``report.json``).
+
+    ``provenance`` fills the fields the folder does not know (``source_image``,
+    ``source_hash``, ``settings_hash``, ``generator``, ``generator_version``,
+    ``stage_seconds``, ``status``, ...); a ``status`` given here wins over the report's.
+    Without a report the status is 'ok' (built, not validated).
+    """
+    asset_dir = Path(asset_dir)
+    meta_path = asset_dir / "asset.json"
+    if not meta_path.is_file():
+        raise CatalogError(f"{meta_path}: not found (not a built asset folder)")
+    meta = _read_json(meta_path)
+    if not isinstance(meta, Mapping):
+        raise CatalogError(f"{meta_path}: top level must be a JSON object")
+    report_path = asset_dir / "report.json"
+    report = _read_json(report_path) if report_path.is_file() else {}
+    if not isinstance(report, Mapping):
+        raise CatalogError(f"{report_path}: top level must be a JSON object")
+
+    joints = {j.get("child"): j for j in meta.get("joints", []) if isinstance(j, Mapping)}
+    parts = []
+    for link in meta.get("links", []):
+        j = joints.get(link.get("name"))
+        parts.append(
+            PartRecord(
+                name=str(link.get("name")),
+                semantic=link.get("semantic"),
+                joint_type=None if j is None else j.get("type"),
+                lower=None if j is None else j.get("lower"),
+                upper=None if j is None else j.get("upper"),
+                mass=link.get("mass"),
+            )
+        )
+    movable = sorted({p.joint_type for p in parts if p.joint_type and p.joint_type != "fixed"})
+    size: tuple[float | None, float | None, float | None] = (None, None, None)
+    bounds = meta.get("bounds")
+    if isinstance(bounds, list) and len(bounds) == 2:
+        size = tuple(float(hi) - float(lo) for lo, hi in zip(bounds[0], bounds[1], strict=True))  # type: ignore[assignment]
+    checks = checks_from_report(report)
+    status = provenance.pop("status", None) or report.get("status") or "ok"
+    reason = provenance.pop("failure_reason", None)
+    if status == "failed" and reason is None:
+        reason = (
+            report.get("failure_reason")
+            or ", ".join(c.name for c in checks if not c.passed)
+            or None
+        )
+    repairs = report.get("repairs", [])
+    known = {f.name for f in fields(AssetRecord)}
+    extra = sorted(set(provenance) - known)
+    if extra:
+        raise TypeError(f"unknown asset record fields: {extra}")
+    rec = AssetRecord(
+        id=str(provenance.pop("id", None) or meta.get("id") or asset_dir.name),
+        status=status,
+        category=provenance.pop("category", None) or meta.get("category", "unknown"),
+        part_count=len(parts),
+        joint_types=",".join(movable),
+        size=size,
+        failure_reason=reason,
+        repairs=tuple(r if isinstance(r, str) else json.dumps(r) for r in repairs),
+        path=str(provenance.pop("path", asset_dir)),
+        **provenance,
+    )
+    return rec, parts, checks
+
+
+def register_asset_dir(catalog: Catalog, asset_dir: str | Path, **provenance: Any) -> AssetRecord:
+    """Read a built asset folder and upsert it into ``catalog``; returns the record."""
+    rec, parts, checks = records_from_asset_dir(asset_dir, **provenance)
+    catalog.upsert_asset(rec, parts, checks)
+    return rec
+
+
+# --------------------------------------------------------------------------- display
+
+_STATUS_STYLE = {"ok": "green", "repaired": "yellow", "failed": "red"}
+
+
+def _size_text(size: tuple[float | None, ...]) -> str:
+    if any(v is None for v in size):
+        return "-"
+    return "x".join(f"{v:.2f}" for v in size)  # type: ignore[str-format]
+
+
+def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table:
+    """A rich table of assets for ``pact ls``."""
+    t = Table(title=title, show_lines=False)
+    t.add_column("id", style="bold")
+    t.add_column("status")
+    t.add_column("category")
+    t.add_column("parts", justify="right")
+    t.add_column("joints")
+    t.add_column("size m (x*y*z)", justify="right")
+    t.add_column("generator")
+    t.add_column("failure / repairs", overflow="fold", max_width=48)
+    for r in rows:
+        style = _STATUS_STYLE.get(r.status, "")
+        note = r.failure_reason or ("; ".join(r.repairs) if r.repairs else "")
+        gen = r.generator or "-"
+        if r.generator_version:
+            gen += f" {r.generator_version}"
+        t.add_row(
+            r.id,
+            f"[{style}]{r.status}[/{style}]" if style else r.status,
+            r.category,
+            "-" if r.part_count is None else str(r.part_count),
+            r.joint_types or "-",
+            _size_text(r.size),
+            gen,
+            note,
+        )
+    return t

@@ -1,0 +1,304 @@
+"""Shared base of the drawer / door tasks: a fixed Panda in front of one built asset.
+
+Everything here is batched over parallel environments so that the same code runs
+on ``physx_cpu`` (one env per process, vectorized with gymnasium's AsyncVectorEnv)
+and ``physx_cuda`` (many envs in one process):
+
+- at reconfiguration each sub-scene ``i`` gets its own asset (``scene_idxs=[i]``),
+  sampled with ``_batched_episode_rng`` so CPU and GPU pick the same ones for the
+  same seeds; the per-env articulations are merged into one view
+  (``Articulation.merge``) and the per-env target links into one ``Link`` view, so
+  qpos, poses and velocities are read as (num_envs, ...) tensors;
+- the target part is fixed per reconfiguration; with one env the scene is rebuilt
+  on every reset by default (``reconfiguration_freq=1``: a new asset and part each
+  episode), with many envs never (``0``: each env keeps its asset; pass
+  ``reconfiguration_freq=k`` to resample every k resets).
+
+Placement: the object stands on the floor at the origin with its front (+x of the
+object frame) toward the robot, turned by a small random yaw. The robot's base
+faces the object's front and is mounted (height included) so that its ready pose
+puts the gripper ``handle_standoff`` metres in front of the target handle, plus a
+little noise: every asset, from a low drawer to a fridge door, starts equally
+reachable.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import sapien
+import torch
+
+from mani_skill.agents.robots import Panda
+from mani_skill.envs.sapien_env import BaseEnv
+from mani_skill.sensors.camera import CameraConfig
+from mani_skill.utils import sapien_utils
+from mani_skill.utils.building.ground import build_ground
+from mani_skill.utils.structs import Articulation, Link, Pose
+from mani_skill.utils.structs.types import GPUMemoryConfig, SimConfig
+from sim_envs.catalog import AssetRecord, AssetSource, MovablePart, open_source
+from sim_envs.scene import (
+    LoadOptions,
+    configure_ground,
+    default_load_options,
+    handle_world_positions,
+    load_asset,
+    robot_ignores_ground,
+    rotate_z,
+    yaw_quat,
+)
+
+log = logging.getLogger(__name__)
+
+# Panda joint angles with the gripper horizontal, pointing along the base's +x, fingers
+# closing vertically (tcp y axis = world z): the start of every episode. The wrist joint
+# (index 6) turns by pi/2 for vertical handle bars so that the fingers close across them.
+READY_QPOS = np.array([0.0, -0.2, 0.0, -1.8, 0.0, 3.171, -0.785, 0.04, 0.04], dtype=np.float32)
+READY_TCP = (0.615, 0.0, 0.818)  # tcp position in the robot base frame at READY_QPOS (FK)
+VERTICAL_BAR_WRIST = 0.785
+
+
+class ArticulatedPartEnv(BaseEnv):
+    """Base task: move one movable part (drawer or door) of a built asset with a Panda.
+
+    Subclasses set ``joint_type`` ("prismatic" or "revolute") and ``closing``.
+    Success (as ManiSkill's OpenCabinetDrawer): the target joint reaches
+    ``lower + open_goal * range`` (``<= lower + close_goal * range`` when closing)
+    while the part is nearly still (|v| <= 0.1 m/s, |w| <= 1 rad/s).
+    """
+
+    SUPPORTED_ROBOTS = ["panda"]
+    SUPPORTED_REWARD_MODES = ("normalized_dense", "dense", "sparse", "none")
+    agent: Panda
+
+    joint_type: str = "prismatic"
+    closing: bool = False
+    open_goal = 0.75
+    close_goal = 0.25
+    start_open_range = (0.8, 1.0)  # closing tasks start with the part this far open
+    handle_standoff = 0.12
+    max_reward = 5.0
+
+    def __init__(
+        self,
+        *args: Any,
+        assets: str | AssetSource | list[str],
+        category: str | list[str] | None = None,
+        target_part: str | None = None,
+        robot_uids: str = "panda",
+        robot_init_qpos_noise: float = 0.02,
+        object_pos_noise: float = 0.03,
+        object_yaw_noise: float = 0.1,
+        robot_pos_noise: float = 0.02,
+        load_options: LoadOptions | None = None,
+        reconfiguration_freq: int | None = None,
+        num_envs: int = 1,
+        **kwargs: Any,
+    ) -> None:
+        self.asset_source = open_source(assets, category=category, joint_type=self.joint_type)
+        self.asset_records: list[AssetRecord] = self.asset_source.require()
+        self.target_part = target_part
+        self.robot_init_qpos_noise = robot_init_qpos_noise
+        self.object_pos_noise = object_pos_noise
+        self.object_yaw_noise = object_yaw_noise
+        self.robot_pos_noise = robot_pos_noise
+        self.load_options = load_options or default_load_options()
+        if reconfiguration_freq is None:
+            reconfiguration_freq = 1 if num_envs == 1 else 0
+        super().__init__(
+            *args,
+            robot_uids=robot_uids,
+            reconfiguration_freq=reconfiguration_freq,
+            num_envs=num_envs,
+            **kwargs,
+        )
+
+    # ------------------------------------------------------------------ configuration
+    @property
+    def _default_sim_config(self) -> SimConfig:
+        return SimConfig(
+            spacing=5,
+            gpu_memory_config=GPUMemoryConfig(max_rigid_contact_count=2**21, max_rigid_patch_count=2**19),
+        )
+
+    @property
+    def _default_sensor_configs(self) -> list[CameraConfig]:
+        # mounted on the robot base (which is placed relative to the handle), looking
+        # over the arm at the target part
+        pose = sapien_utils.look_at(eye=[-0.25, 0.0, 0.9], target=[0.6, 0.0, 0.3])
+        return [
+            CameraConfig(
+                "base_camera", pose=pose, width=128, height=128, fov=np.pi / 2, near=0.01, far=10,
+                mount=self.agent.robot.links_map["panda_link0"],
+            )
+        ]
+
+    @property
+    def _default_human_render_camera_configs(self) -> CameraConfig:
+        pose = sapien_utils.look_at(eye=[2.2, -1.6, 1.6], target=[0.3, 0.0, 0.5])
+        return CameraConfig("render_camera", pose=pose, width=512, height=512, fov=1.0, near=0.01, far=20)
+
+    # ------------------------------------------------------------------ loading
+    def _load_agent(self, options: dict) -> None:
+        super()._load_agent(options, sapien.Pose(p=[1.5, 0.0, 0.0], q=[0, 0, 0, 1]))
+        robot_ignores_ground(self.agent.robot)
+
+    def _load_scene(self, options: dict) -> None:
+        self.ground = build_ground(self.scene)
+        configure_ground(self.ground, self.load_options)
+        rng = self._batched_episode_rng
+        asset_idx = rng.randint(0, len(self.asset_records))
+        part_pick = rng.randint(0, 2**31)
+        objects: list[Articulation] = []
+        links: list[Link] = []
+        self.episode_assets: list[AssetRecord] = []
+        self.episode_parts: list[MovablePart] = []
+        dof_idx = []
+        for i in range(self.num_envs):
+            rec = self.asset_records[int(asset_idx[i])]
+            parts = rec.parts_of_type(self.joint_type)
+            if self.target_part is not None:
+                parts = [p for p in parts if p.name == self.target_part]
+                if not parts:
+                    raise ValueError(f"{rec.id}: no {self.joint_type} part named {self.target_part!r}")
+            part = parts[int(part_pick[i]) % len(parts)]
+            art = load_asset(self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.load_options)
+            self.remove_from_state_dict_registry(art)
+            objects.append(art)
+            link = art.links_map[part.name]
+            links.append(link)
+            joint_names = [j.name for j in art.active_joints]
+            dof_idx.append(joint_names.index(part.joint_name))
+            self.episode_assets.append(rec)
+            self.episode_parts.append(part)
+        self.object = Articulation.merge(objects, name="object")
+        self.add_to_state_dict_registry(self.object)
+        self.target_link = Link.merge(links, name="target_link")
+
+        def tensor(rows: list) -> torch.Tensor:
+            return torch.tensor(np.asarray(rows, dtype=np.float32), device=self.device)
+
+        parts = self.episode_parts
+        self.target_dof_idx = torch.tensor(dof_idx, device=self.device, dtype=torch.long)
+        self.handle_link_pos = tensor([p.handle_link for p in parts])  # (N, 3) link frame
+        self.handle_rest_pos = tensor([p.handle_object for p in parts])  # (N, 3) object frame
+        self.handle_axis_obj = tensor([p.handle_axis for p in parts])  # (N, 3)
+        self.joint_axis_obj = tensor([p.axis for p in parts])  # (N, 3)
+        self.qlow = tensor([p.lower for p in parts])  # (N,)
+        self.qhigh = tensor([p.upper for p in parts])  # (N,)
+        self.qrange = self.qhigh - self.qlow
+        self.start_fraction = torch.zeros(self.num_envs, device=self.device)
+        self.object_yaw = torch.zeros(self.num_envs, device=self.device)
+
+    # ------------------------------------------------------------------ episodes
+    def _initialize_episode(self, env_idx: torch.Tensor, options: dict) -> None:
+        with torch.device(self.device):
+            b = len(env_idx)
+            # object: on the floor at the origin, front (+x) toward the robot, small yaw
+            yaw = (torch.rand(b) * 2 - 1) * self.object_yaw_noise
+            pos = torch.zeros((b, 3))
+            pos[:, :2] = (torch.rand((b, 2)) * 2 - 1) * self.object_pos_noise
+            self.object.set_pose(Pose.create_from_pq(p=pos, q=yaw_quat(yaw)))
+            self.object_yaw[env_idx] = yaw
+
+            # joints: everything closed; the target part open when the task is closing
+            qpos = self.object.get_qlimits()[env_idx][..., 0].clone()
+            lo, rng = self.qlow[env_idx], self.qrange[env_idx]
+            frac = torch.zeros(b)
+            if self.closing:
+                a, c = self.start_open_range
+                frac = a + (c - a) * torch.rand(b)
+            qpos[torch.arange(b), self.target_dof_idx[env_idx]] = lo + frac * rng
+            self.object.set_qpos(qpos)
+            self.object.set_qvel(torch.zeros_like(qpos))
+            self.start_fraction[env_idx] = frac
+
+            # robot: facing the object's front, ready pose in front of the closed handle
+            handle = pos + rotate_z(self.handle_rest_pos[env_idx], yaw)
+            front = rotate_z(torch.tensor([[1.0, 0.0, 0.0]]).expand(b, 3), yaw)
+            robot_yaw = yaw + torch.pi + (torch.rand(b) * 2 - 1) * 0.05
+            tcp_goal = handle + front * self.handle_standoff
+            tcp_goal = tcp_goal + (torch.rand((b, 3)) * 2 - 1) * self.robot_pos_noise
+            base = tcp_goal - rotate_z(torch.tensor([READY_TCP]).expand(b, 3), robot_yaw)
+            self.agent.robot.set_pose(Pose.create_from_pq(p=base, q=yaw_quat(robot_yaw)))
+            rq = torch.tensor(READY_QPOS).expand(b, -1).clone()
+            vertical_bar = self.handle_axis_obj[env_idx, 2].abs() > 0.7
+            rq[vertical_bar, 6] = VERTICAL_BAR_WRIST
+            rq[:, :7] += torch.randn((b, 7)) * self.robot_init_qpos_noise
+            self.agent.robot.set_qpos(rq)
+            self.agent.robot.set_qvel(torch.zeros_like(rq))
+
+    # ------------------------------------------------------------------ task
+    def target_qpos(self) -> torch.Tensor:
+        """(N,) joint value of each env's target part."""
+        return self.object.get_qpos()[torch.arange(self.num_envs, device=self.device), self.target_dof_idx]
+
+    def target_qvel(self) -> torch.Tensor:
+        return self.object.get_qvel()[torch.arange(self.num_envs, device=self.device), self.target_dof_idx]
+
+    def open_fraction(self) -> torch.Tensor:
+        return (self.target_qpos() - self.qlow) / self.qrange
+
+    def handle_positions(self) -> torch.Tensor:
+        """(N, 3) world position of each env's target handle."""
+        return handle_world_positions(self.target_link.pose.to_transformation_matrix(), self.handle_link_pos)
+
+    def joint_axis_world(self) -> torch.Tensor:
+        return rotate_z(self.joint_axis_obj, self.object_yaw)
+
+    def evaluate(self) -> dict[str, torch.Tensor]:
+        frac = self.open_fraction()
+        handle = self.handle_positions()
+        tcp_to_handle = handle - self.agent.tcp.pose.p
+        if self.closing:
+            goal_reached = frac <= self.close_goal
+        else:
+            goal_reached = frac >= self.open_goal
+        link_static = (torch.linalg.norm(self.target_link.angular_velocity, dim=1) <= 1.0) & (
+            torch.linalg.norm(self.target_link.linear_velocity, dim=1) <= 0.1
+        )
+        return {
+            "success": goal_reached & link_static,
+            "goal_reached": goal_reached,
+            "open_fraction": frac,
+            "handle_pos": handle,
+            "tcp_to_handle": tcp_to_handle,
+            "tcp_to_handle_dist": torch.linalg.norm(tcp_to_handle, dim=1),
+        }
+
+    def _get_obs_extra(self, info: dict) -> dict[str, torch.Tensor]:
+        obs = dict(tcp_pose=self.agent.tcp.pose.raw_pose)
+        if self.obs_mode_struct.use_state:
+            obs.update(
+                handle_pos=info["handle_pos"],
+                tcp_to_handle=info["tcp_to_handle"],
+                target_qpos=self.target_qpos()[:, None],
+                target_qvel=self.target_qvel()[:, None],
+                target_qlimits=torch.stack([self.qlow, self.qhigh], dim=1),
+                open_fraction=info["open_fraction"][:, None],
+                joint_axis=self.joint_axis_world(),
+            )
+        return obs
+
+    def progress(self, info: dict) -> torch.Tensor:
+        """(N,) task progress in [0, 1]: 1 when the goal fraction is reached."""
+        frac = info["open_fraction"]
+        if self.closing:
+            denom = torch.clamp(self.start_fraction - self.close_goal, min=1e-3)
+            return torch.clamp((self.start_fraction - frac) / denom, 0.0, 1.0)
+        return torch.clamp(frac / self.open_goal, 0.0, 1.0)
+
+    def compute_dense_reward(self, obs: Any, action: torch.Tensor, info: dict) -> torch.Tensor:
+        reach = 1.0 - torch.tanh(5.0 * info["tcp_to_handle_dist"])
+        progress = self.progress(info)
+        # once the part moves, stop asking the gripper to stay at the handle (a push or
+        # a hook is as good as a grasp)
+        reach = torch.where(progress > 0.05, torch.ones_like(reach), reach)
+        reward = reach + 3.0 * progress
+        reward = torch.where(info["success"], torch.full_like(reward, self.max_reward), reward)
+        return reward
+
+    def compute_normalized_dense_reward(self, obs: Any, action: torch.Tensor, info: dict) -> torch.Tensor:
+        return self.compute_dense_reward(obs=obs, action=action, info=info) / self.max_reward

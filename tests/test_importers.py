@@ -1,0 +1,216 @@
+"""Importing CAGE/SINGAPO/PAct ``diffuse_tree`` objects as bundles."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from asset_pipeline.importers import (
+    ImportFormatError,
+    ImportOptions,
+    convert_tree,
+    find_sources,
+    import_path,
+)
+from generator.articulated import load_bundle
+
+
+def _box(path: Path, extents, centre) -> str:
+    """Write a box mesh (source frame) and return its path relative to the object folder."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    m = trimesh.creation.box(extents=extents)
+    m.apply_translation(centre)
+    m.export(path)
+    return path.relative_to(path.parent.parent).as_posix()
+
+
+def _node(
+    nid, parent, name, jtype="fixed", origin=(0, 0, 0), direction=(0, 0, 0), rng=(0, 0), **files
+):
+    return {
+        "id": nid,
+        "parent": parent,
+        "name": name,
+        "children": [],
+        "aabb": {"center": [0, 0, 0], "size": [0, 0, 0]},
+        "joint": {
+            "type": jtype,
+            "range": list(rng),
+            "axis": {"origin": list(origin), "direction": list(direction)},
+        },
+        **files,
+    }
+
+
+def make_singapo(folder: Path, door_range=(-90.0, 0.0), extra=None) -> Path:
+    """A SINGAPO-style cabinet in the source frame (+y up, front +z): body, door, drawer+handle."""
+    folder.mkdir(parents=True, exist_ok=True)
+    base = _box(folder / "plys" / "0.ply", (1.0, 1.2, 0.5), (0, 0.6, 0))
+    door = _box(folder / "plys" / "1.ply", (0.48, 0.6, 0.02), (-0.25, 0.85, 0.26))
+    drawer = _box(folder / "plys" / "2.ply", (0.9, 0.3, 0.45), (0, 0.3, 0.03))
+    handle = _box(folder / "plys" / "3.ply", (0.2, 0.03, 0.03), (0, 0.3, 0.27))
+    nodes = [
+        _node(0, -1, "base", plys=[base]),
+        _node(1, 0, "door", "revolute", (-0.49, 0.85, 0.27), (0, 1, 0), door_range, plys=[door]),
+        _node(2, 0, "drawer", "prismatic", (0, 0.3, 0.03), (0, 0, 1), (0, 0.35), plys=[drawer]),
+        _node(3, 2, "handle", "fixed", plys=[handle]),
+    ]
+    nodes += extra or []
+    data = {"meta": {"obj_cat": "StorageFurniture"}, "diffuse_tree": nodes}
+    (folder / "object.json").write_text(json.dumps(data))
+    return folder / "object.json"
+
+
+def test_singapo_object_becomes_a_bundle(tmp_path: Path) -> None:
+    make_singapo(tmp_path / "src" / "StorageFurniture@45290@01")
+    out = tmp_path / "out"
+    written = import_path(tmp_path / "src", out)
+    assert written == [out / "StorageFurniture_45290_01"]
+    obj = load_bundle(written[0])
+    assert obj.category == "cabinet" and obj.scale is None
+    assert [p.name for p in obj.parts] == ["base", "door_0", "drawer_0"]
+
+    # Normalized into the unit cube, +z up: the body is 1.2 tall (largest extent).
+    b = obj.bounds()
+    assert np.allclose(b[1] - b[0], np.array([0.535, 1.0, 1.2]) / 1.2, atol=1e-5)
+    assert np.allclose((b[0] + b[1]) / 2, 0, atol=1e-6)
+    s = obj.provenance["normalization"][3]
+    assert s == pytest.approx(1.2)
+
+    drawer = obj.part("drawer_0")
+    assert np.allclose(drawer.joint.axis, [1, 0, 0])  # source +z front -> +x
+    assert drawer.joint.upper == pytest.approx(0.35 / 1.2)
+    assert len(drawer.mesh.vertices) == 16  # the fixed handle is merged into the drawer
+
+    door = obj.part("door_0")
+    # range [-90, 0] about +y opens toward negative angles: flipped to [0, pi/2] about -z
+    assert np.allclose(door.joint.axis, [0, 0, -1])
+    assert (door.joint.lower, door.joint.upper) == pytest.approx((0.0, math.pi / 2))
+    opened = door.posed_mesh(door.joint.upper)
+    assert opened.bounds[1, 0] > door.mesh.bounds[1, 0] + 0.2  # swings out of the front (+x)
+    # hinge in our frame: source (-0.49, 0.85, 0.27) -> (0.27, -0.49, 0.85), then normalized
+    c = np.array(obj.provenance["normalization"][:3])
+    assert np.allclose(door.joint.origin * s + c, [0.27, -0.49, 0.85], atol=1e-6)
+
+
+def test_positive_range_keeps_axis_and_z_up_option(tmp_path: Path) -> None:
+    src = make_singapo(tmp_path / "a", door_range=(0.0, 120.0))
+    obj = convert_tree(src)
+    assert np.allclose(obj.part("door_0").joint.axis, [0, 0, 1])
+    assert obj.part("door_0").joint.upper == pytest.approx(math.radians(120))
+    obj_z = convert_tree(src, ImportOptions(up="z"))
+    assert np.allclose(obj_z.part("drawer_0").joint.axis, [0, 0, 1])  # taken as is
+
+
+def test_pact_export_layout_with_glb_meshes(tmp_path: Path) -> None:
+    run = tmp_path / "outputs" / "run" / "exported_arti_objects"
+    for k, oid in enumerate(("Microwave@7128@01", "Oven@101@02")):
+        folder = run / oid
+        base = _box(folder / "glb" / "part_0.glb", (0.6, 0.4, 0.4), (0, 0.2, 0))
+        door = _box(folder / "glb" / "part_1.glb", (0.5, 0.3, 0.02), (0, 0.2, 0.21))
+        nodes = [
+            _node(0, -1, "base", glb=[base], plys=["ply/missing.ply"]),
+            _node(1, 0, "door", "revolute", (0, 0.05, 0.22), (-1, 0, 0), (0, 80 + k), glb=[door]),
+        ]
+        (folder / "object.json").write_text(
+            json.dumps({"meta": {"obj_cat": oid.split("@")[0]}, "diffuse_tree": nodes})
+        )
+    assert len(find_sources(tmp_path / "outputs")) == 2
+    written = import_path(tmp_path / "outputs", tmp_path / "out")
+    assert [p.name for p in written] == ["Microwave_7128_01", "Oven_101_02"]
+    objs = [load_bundle(p) for p in written]
+    assert [o.category for o in objs] == ["microwave", "oven"]
+    # a bottom-hinged door (source axis -x) in our frame: axis -y
+    assert np.allclose(objs[0].part("door_0").joint.axis, [0, -1, 0])
+    with pytest.raises(ImportFormatError, match="already exists"):
+        import_path(tmp_path / "outputs", tmp_path / "out")
+    assert (
+        len(import_path(tmp_path / "outputs", tmp_path / "out", ImportOptions(overwrite=True))) == 2
+    )
+
+
+def test_screw_is_refused_by_default_and_continuous_mapped(tmp_path: Path) -> None:
+    folder = tmp_path / "obj"
+    knob = _box(folder / "plys" / "9.ply", (0.05, 0.05, 0.02), (0.3, 1.0, 0.26))
+    src = make_singapo(
+        folder,
+        extra=[_node(9, 0, "knob", "screw", (0.3, 1.0, 0.26), (0, 0, 1), (0, 0.01), plys=[knob])],
+    )
+    with pytest.raises(ImportFormatError) as e:
+        convert_tree(src)
+    msg = str(e.value)
+    assert str(src) in msg and "diffuse_tree[4].joint.type" in msg and "screw" in msg
+    obj = convert_tree(src, ImportOptions(screw="prismatic"))
+    assert obj.part("knob_0").joint.type == "prismatic"
+    assert len(convert_tree(src, ImportOptions(screw="fixed")).parts) == 3
+
+    data = json.loads(src.read_text())
+    data["diffuse_tree"][4]["joint"]["type"] = "continuous"
+    src.write_text(json.dumps(data))
+    knob_j = convert_tree(src).part("knob_0").joint
+    assert knob_j.type == "revolute" and knob_j.upper == pytest.approx(2 * math.pi)
+    with pytest.raises(ImportFormatError, match="continuous"):
+        convert_tree(src, ImportOptions(continuous="error"))
+
+
+def test_movable_grandchild_is_rerooted_onto_base(tmp_path: Path) -> None:
+    folder = tmp_path / "obj"
+    inner = _box(folder / "plys" / "5.ply", (0.2, 0.1, 0.1), (0, 0.3, 0.1))
+    src = make_singapo(
+        folder,
+        extra=[
+            _node(5, 2, "drawer", "prismatic", (0, 0.3, 0.1), (0, 0, 1), (0, 0.1), plys=[inner])
+        ],
+    )
+    obj = convert_tree(src)
+    assert [p.name for p in obj.parts] == ["base", "door_0", "drawer_0", "drawer_1"]
+    assert obj.part("drawer_1").joint.parent == "base"
+
+
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (
+            lambda d: d["diffuse_tree"][1]["plys"].__setitem__(0, "plys/nope.ply"),
+            "diffuse_tree[1].plys",
+        ),
+        (
+            lambda d: d["diffuse_tree"][2]["joint"]["axis"].__setitem__("direction", [0, 0]),
+            "direction",
+        ),
+        (lambda d: d["diffuse_tree"][1].__setitem__("parent", 42), "diffuse_tree[1].parent"),
+        (lambda d: d["diffuse_tree"][1].__setitem__("parent", -1), "exactly one root"),
+        (
+            lambda d: d["diffuse_tree"][1]["joint"].__setitem__("type", "ball"),
+            "diffuse_tree[1].joint.type",
+        ),
+        (lambda d: d["diffuse_tree"][2]["joint"].__setitem__("range", "far"), "joint.range"),
+        (lambda d: d.pop("diffuse_tree"), "diffuse_tree"),
+    ],
+)
+def test_errors_name_file_and_field(tmp_path: Path, mutate, field: str) -> None:
+    src = make_singapo(tmp_path / "obj")
+    data = json.loads(src.read_text())
+    mutate(data)
+    src.write_text(json.dumps(data))
+    with pytest.raises(ImportFormatError) as e:
+        import_path(src, tmp_path / "out")
+    assert str(src) in str(e.value) and field in str(e.value)
+    assert not (tmp_path / "out").exists()  # nothing half-written
+
+
+def test_arti_tree_key_and_own_bundles(tmp_path: Path) -> None:
+    src = make_singapo(tmp_path / "obj")
+    data = json.loads(src.read_text())
+    data["arti_tree"] = data.pop("diffuse_tree")
+    src.write_text(json.dumps(data))
+    (written,) = import_path(tmp_path / "obj", tmp_path / "out")
+    with pytest.raises(ImportFormatError, match="already a bundle"):
+        import_path(written / "object.json", tmp_path / "again")
+    with pytest.raises(ImportFormatError, match="no CAGE/SINGAPO/PAct"):
+        import_path(tmp_path / "out", tmp_path / "again")

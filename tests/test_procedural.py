@@ -1,0 +1,267 @@
+"""Tests of the procedural factory (generator/procedural): geometry, joints, splits, I/O."""
+
+from __future__ import annotations
+
+import itertools
+from functools import lru_cache
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from generator.articulated import ArticulatedObject, load_bundle, save_bundle
+from generator.procedural import (
+    CATEGORIES,
+    HELD_OUT,
+    UnknownCategoryError,
+    object_id,
+    sample_object,
+)
+from generator.procedural.sampling import SplitChoice, SplitRange
+
+SEEDS = (0, 1, 2, 3)
+CASES = [(c, s, split) for c in CATEGORIES for s in SEEDS for split in ("train", "test")]
+OVERLAP_TOL = 1e-7  # m^3
+
+# (min, max) number of movable parts per semantic, per category
+COUNTS = {
+    "cabinet": {"total": (1, 8)},
+    "desk": {"drawer": (1, 4), "door": (0, 0), "lid": (0, 0)},
+    "microwave": {"door": (1, 1), "drawer": (0, 0), "lid": (0, 0)},
+    "oven": {"door": (1, 1), "drawer": (0, 1), "lid": (0, 0)},
+    "dishwasher": {"door": (1, 1), "drawer": (0, 0), "lid": (0, 0)},
+    "refrigerator": {"door": (1, 2), "drawer": (0, 0), "lid": (0, 0)},
+    "washing_machine": {"total": (1, 1), "drawer": (0, 0)},
+}
+
+
+@lru_cache(maxsize=None)
+def _obj(category: str, seed: int, split: str) -> ArticulatedObject:
+    return sample_object(category, seed, split)
+
+
+def _manifold(mesh: trimesh.Trimesh) -> manifold3d.Manifold:
+    return manifold3d.Manifold(
+        mesh=manifold3d.Mesh(
+            vert_properties=np.asarray(mesh.vertices, dtype=np.float32),
+            tri_verts=np.asarray(mesh.faces, dtype=np.uint32),
+        )
+    )
+
+
+def _overlap(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
+    """Volume (m^3) of the boolean intersection of two closed meshes."""
+    return (_manifold(a) ^ _manifold(b)).volume()
+
+
+@pytest.mark.parametrize("category,seed,split", CASES)
+def test_object_is_valid_metric_and_watertight(category: str, seed: int, split: str) -> None:
+    obj = _obj(category, seed, split)
+    obj.validate()
+    assert obj.scale == 1.0 and obj.category == category
+    base = obj.base
+    lo, hi = base.mesh.bounds
+    assert abs(lo[2]) < 1e-6, "the base stands on the floor (min z = 0)"
+    # footprint centred; control knobs may stand up to 2.5 cm proud of an appliance front
+    assert abs(lo[1] + hi[1]) / 2 < 1e-3, "footprint centred in y"
+    assert abs(lo[0] + hi[0]) / 2 < 0.0126, "footprint centred in x"
+    assert 0.2 < hi[2] < 2.2 and 0.2 < hi[1] - lo[1] < 2.0, "realistic metric size"
+    for part in obj.parts:
+        assert part.primitives, part.name
+        assert part.material in {"wood", "metal", "plastic", "glass"}
+        assert part.mesh.is_watertight, part.name
+        union = trimesh.boolean.union([p.to_mesh() for p in part.primitives], engine="manifold")
+        assert part.mesh.volume == pytest.approx(union.volume, rel=1e-5, abs=1e-9), part.name
+        assert part.mesh.volume > 0
+
+
+@pytest.mark.parametrize("category,seed,split", CASES)
+def test_part_names_and_counts(category: str, seed: int, split: str) -> None:
+    obj = _obj(category, seed, split)
+    assert obj.parts[0].name == "base"
+    by_sem: dict[str, list[str]] = {}
+    for p in obj.movable_parts:
+        assert p.semantic in {"drawer", "door", "lid"}
+        by_sem.setdefault(p.semantic, []).append(p.name)
+    for sem, names in by_sem.items():
+        assert names == [f"{sem}_{k}" for k in range(len(names))]
+    limits = COUNTS[category]
+    if "total" in limits:
+        lo, hi = limits["total"]
+        assert lo <= len(obj.movable_parts) <= hi
+    for sem, (lo, hi) in limits.items():
+        if sem != "total":
+            assert lo <= len(by_sem.get(sem, [])) <= hi, (sem, by_sem)
+    # stable order: top to bottom, then left to right (ascending y), per semantic
+    for names in by_sem.values():
+        centres = [obj.part(n).mesh.bounds[:, 1:].mean(axis=0) for n in names]  # (y, z)
+        for (ya, za), (yb, zb) in itertools.pairwise(centres):
+            assert za > zb + 1e-3 or (abs(za - zb) <= 1e-3 and ya < yb), names
+
+
+@pytest.mark.parametrize("category,seed,split", CASES)
+def test_no_overlap_at_rest(category: str, seed: int, split: str) -> None:
+    obj = _obj(category, seed, split)
+    for a, b in itertools.combinations(obj.parts, 2):
+        assert _overlap(a.mesh, b.mesh) < OVERLAP_TOL, (a.name, b.name)
+
+
+@pytest.mark.parametrize("category,seed,split", CASES)
+def test_joints_open_outward_without_collisions(category: str, seed: int, split: str) -> None:
+    obj = _obj(category, seed, split)
+    base = obj.base
+    for p in obj.movable_parts:
+        j = p.joint
+        assert j.lower == 0.0
+        assert np.linalg.norm(j.axis) == pytest.approx(1.0)
+        rest = p.mesh
+        opened = p.posed_mesh(j.upper)
+        if p.semantic == "drawer":
+            assert j.type == "prismatic" and np.allclose(j.axis, [1, 0, 0])
+            depth = j.origin[0] - rest.bounds[0, 0]
+            assert 0.7 - 1e-6 <= j.upper / depth <= 0.9 + 1e-6
+            assert np.allclose(opened.vertices - rest.vertices, [j.upper, 0, 0], atol=1e-6)
+            # still engaged: the drawer's back stays inside the carcass by >= 10 % of depth
+            assert opened.bounds[0, 0] < j.origin[0] - 0.09 * depth
+            assert _overlap(opened, base.mesh) < OVERLAP_TOL
+        else:
+            assert j.type == "revolute"
+            if p.semantic == "door":
+                assert 1.4 - 1e-6 <= j.upper <= 2.0 + 1e-6
+                if abs(j.axis[1]) > 0.5:  # bottom/top hinged
+                    assert j.upper <= 1.5708
+                assert opened.centroid[0] > rest.centroid[0] + 0.05
+                handle = p.handle.position
+                moved = trimesh.transform_points([handle], j.transform(j.upper))[0]
+                assert moved[0] > handle[0] + 0.05, "the free edge swings toward +x"
+            else:  # lid
+                assert opened.centroid[2] > rest.centroid[2] + 0.05
+            # the hinge lies on the edge of the part's bounding box
+            lo, hi = rest.bounds
+            on_face = np.isclose(j.origin, lo, atol=1e-4) | np.isclose(j.origin, hi, atol=1e-4)
+            assert on_face.sum() >= 1
+        # sweeping the range never passes through the base or a sibling at rest
+        for frac in (0.3, 0.7, 1.0):
+            posed = p.posed_mesh(frac * j.upper)
+            for q in obj.parts:
+                if q is not p:
+                    assert _overlap(posed, q.mesh) < OVERLAP_TOL, (p.name, frac, q.name)
+
+
+@pytest.mark.parametrize("category,seed,split", CASES)
+def test_handles_belong_to_their_parts(category: str, seed: int, split: str) -> None:
+    obj = _obj(category, seed, split)
+    for p in obj.movable_parts:
+        h = p.handle
+        assert h is not None and h.kind in {"bar", "knob", "recessed"}
+        assert np.linalg.norm(h.axis) == pytest.approx(1.0)
+        _, dist, _ = trimesh.proximity.closest_point(p.mesh, [h.position])
+        assert dist[0] < 0.01, (p.name, h.kind, dist[0])
+        assert h.position[0] > p.mesh.centroid[0], (p.name, h.kind)
+
+
+def test_same_seed_identical_and_seeds_differ() -> None:
+    for category in CATEGORIES:
+        a, b = sample_object(category, 7), sample_object(category, 7)
+        assert [p.name for p in a.parts] == [p.name for p in b.parts]
+        for pa, pb in zip(a.parts, b.parts, strict=True):
+            assert np.array_equal(pa.mesh.vertices, pb.mesh.vertices)
+            assert np.array_equal(pa.mesh.faces, pb.mesh.faces)
+            if pa.joint is not None:
+                assert pa.joint.to_json() == pb.joint.to_json()
+        assert a.provenance == b.provenance
+        c = sample_object(category, 8)
+        assert a.provenance["params"] != c.provenance["params"]
+        assert not np.array_equal(a.base.mesh.bounds, c.base.mesh.bounds)
+
+
+def test_splits_use_disjoint_held_out_ranges() -> None:
+    assert set(HELD_OUT) == set(CATEGORIES)
+    for category in CATEGORIES:
+        assert HELD_OUT[category], category
+        for seed in range(6):
+            train = _obj(category, seed, "train") if seed in SEEDS else sample_object(category, seed)
+            test = _obj(category, seed, "test") if seed in SEEDS else sample_object(category, seed, "test")
+            assert train.provenance["split"] == "train" and test.provenance["split"] == "test"
+            assert train.provenance["params"] != test.provenance["params"]
+            for name, spec in HELD_OUT[category].items():
+                assert isinstance(spec, SplitRange | SplitChoice)
+                assert spec.held_out(test.provenance["params"][name]), (category, name)
+                assert not spec.held_out(train.provenance["params"][name]), (category, name)
+
+
+def test_provenance_and_object_id() -> None:
+    obj = _obj("cabinet", 1, "train")
+    prov = obj.provenance
+    assert prov["generator"] == "procedural" and prov["category"] == "cabinet"
+    assert prov["seed"] == 1 and prov["split"] == "train"
+    assert {"width", "height", "depth", "panel_t", "gap"} <= set(prov["params"])
+    assert 0.012 <= prov["params"]["panel_t"] <= 0.025
+    assert 0.001 <= prov["params"]["gap"] <= 0.003
+    assert object_id("cabinet", 12) == "cabinet_s0000012"
+    assert object_id("cabinet", 12, "test") == "cabinet_t0000012"
+
+
+def test_errors() -> None:
+    with pytest.raises(UnknownCategoryError) as e:
+        sample_object("sofa", 0)
+    for c in CATEGORIES:
+        assert c in str(e.value)
+    assert isinstance(e.value, ValueError)
+    with pytest.raises(ValueError, match="split"):
+        sample_object("cabinet", 0, split="bogus")
+    with pytest.raises(UnknownCategoryError):
+        object_id("sofa", 0)
+
+
+def test_appearance_colours_and_textures() -> None:
+    textured = coloured = 0
+    for category in ("cabinet", "desk"):
+        for seed in SEEDS:
+            for p in _obj(category, seed, "train").parts:
+                vis = p.mesh.visual
+                if isinstance(vis, trimesh.visual.TextureVisuals):
+                    textured += 1
+                    assert vis.uv.shape == (len(p.mesh.vertices), 2)
+                    assert np.all((vis.uv >= 0) & (vis.uv <= 1))
+                    assert vis.material.image.size == (64, 64)
+                else:
+                    coloured += 1
+                    assert vis.vertex_colors.shape == (len(p.mesh.vertices), 4)
+    assert textured > 0 and coloured > 0
+    # bar/knob handles are painted in the accent colour, not the panel's colour
+    checked = 0
+    for category, seed in itertools.product(CATEGORIES, SEEDS):
+        for p in _obj(category, seed, "train").movable_parts:
+            vis = p.mesh.visual
+            if p.handle.kind in {"bar", "knob"} and isinstance(vis, trimesh.visual.ColorVisuals):
+                v = p.mesh.vertices
+                near = np.argmin(np.linalg.norm(v - p.handle.position, axis=1))
+                back = np.argmin(v[:, 0])
+                assert not np.array_equal(vis.vertex_colors[near], vis.vertex_colors[back])
+                checked += 1
+    assert checked > 0
+
+
+def test_bundle_round_trip(tmp_path) -> None:
+    for category in CATEGORIES:
+        obj = _obj(category, 2, "train")
+        back = load_bundle(save_bundle(obj, tmp_path / object_id(category, 2)))
+        assert [p.name for p in back.parts] == [p.name for p in obj.parts]
+        assert back.provenance == obj.provenance
+        for a, b in zip(obj.parts, back.parts, strict=True):
+            assert np.array_equal(a.mesh.vertices, b.mesh.vertices), a.name
+            assert np.array_equal(a.mesh.faces, b.mesh.faces), a.name
+            assert b.mesh.is_watertight
+            assert (a.joint is None) == (b.joint is None)
+            if a.joint is not None:
+                assert a.joint.to_json() == b.joint.to_json()
+                assert a.handle.to_json() == b.handle.to_json()
+            assert [q.to_json() for q in a.primitives] == [q.to_json() for q in b.primitives]
+
+
+def test_sampling_prints_nothing(capsys) -> None:
+    sample_object("refrigerator", 3)
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""

@@ -1,0 +1,172 @@
+"""The SQLite asset catalog."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from asset_pipeline.registry import (
+    AssetRecord,
+    Catalog,
+    CatalogError,
+    CheckRecord,
+    PartRecord,
+    format_table,
+    records_from_asset_dir,
+    register_asset_dir,
+)
+
+
+def write_asset(folder: Path, id: str, status: str = "ok", category: str = "cabinet") -> Path:
+    """Minimal asset.json + report.json of a built asset (docs/architecture.md)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    asset = {
+        "schema": "pact.asset",
+        "version": 1,
+        "id": id,
+        "category": category,
+        "metric_scale": 1.0,
+        "bounds": [[-0.3, -0.4, 0.0], [0.3, 0.4, 0.9]],
+        "links": [
+            {"name": "base", "semantic": "base", "mass": 12.0},
+            {"name": "drawer_0", "semantic": "drawer", "mass": 1.5},
+            {"name": "door_0", "semantic": "door", "mass": 2.0},
+        ],
+        "joints": [
+            {"name": "joint_drawer_0", "parent": "base", "child": "drawer_0", "type": "prismatic",
+             "origin": [0.3, 0, 0.4], "axis": [1, 0, 0], "lower": 0.0, "upper": 0.35},
+            {"name": "joint_door_0", "parent": "base", "child": "door_0", "type": "revolute",
+             "origin": [0.3, -0.4, 0.6], "axis": [0, 0, 1], "lower": 0.0, "upper": 1.57},
+        ],
+    }  # fmt: skip
+    report = {
+        "status": status,
+        "checks": [
+            {"name": "loads", "passed": True, "value": 1, "tolerance": None},
+            {"name": "rest_drift", "passed": status != "failed", "value": 0.004, "tolerance": 0.002,
+             "detail": "base drifts"},
+            {"name": "sweep", "passed": True, "value": [0.0, 0.35], "tolerance": "range"},
+        ],
+        "repairs": ["raised damping on joint_door_0"] if status == "repaired" else [],
+    }  # fmt: skip
+    (folder / "asset.json").write_text(json.dumps(asset))
+    (folder / "report.json").write_text(json.dumps(report))
+    return folder
+
+
+def test_register_query_and_read_back(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    with Catalog(out) as cat:
+        register_asset_dir(
+            cat,
+            write_asset(out / "cab_a", "cab_a"),
+            source_image="photos/a.png",
+            source_hash="h1",
+            settings_hash="s1",
+            generator="pact",
+            generator_version="0.1",
+            stage_seconds={"generate": 1.5, "collision": 3.0},
+        )
+        register_asset_dir(cat, write_asset(out / "cab_b", "cab_b", "repaired"))
+        register_asset_dir(cat, write_asset(out / "mw", "mw", "failed", "microwave"))
+        cat.record_failure("cab_c", "generator crashed: OOM", source_hash="h3", settings_hash="s1")
+
+    assert (out / "registry.sqlite").is_file()
+    with Catalog(out, readonly=True) as cat:
+        a = cat.get("cab_a")
+        assert a.status == "ok" and a.category == "cabinet" and a.part_count == 3
+        assert a.joint_types == "prismatic,revolute"
+        assert a.size == pytest.approx((0.6, 0.8, 0.9))
+        assert a.stage_seconds == {"generate": 1.5, "collision": 3.0}
+        assert a.path == "cab_a" and cat.asset_dir(a) == out / "cab_a"
+        assert [p.name for p in a.parts] == ["base", "drawer_0", "door_0"]
+        assert a.parts[1] == PartRecord("drawer_0", "drawer", "prismatic", 0.0, 0.35, 1.5)
+        assert a.parts[0].joint_type is None
+        sweep = next(c for c in a.checks if c.name == "sweep")
+        assert sweep.value == [0.0, 0.35] and sweep.tolerance == "range"
+
+        assert [r.id for r in cat.query()] == ["cab_a", "cab_b", "cab_c", "mw"]
+        assert [r.id for r in cat.query(status="ok")] == ["cab_a"]
+        assert [r.id for r in cat.query(category="microwave")] == ["mw"]
+        assert [r.id for r in cat.query(joint_type="revolute", status="repaired")] == ["cab_b"]
+        assert cat.get("cab_b").repairs == ("raised damping on joint_door_0",)
+        mw = cat.get("mw")
+        assert mw.failure_reason == "rest_drift"
+        assert [c.name for c in mw.failed_checks] == ["rest_drift"]
+        assert mw.failed_checks[0].value == pytest.approx(0.004)
+        assert cat.get("cab_c").failure_reason == "generator crashed: OOM"
+        assert cat.get("nope") is None
+
+
+def test_is_done_retries_failures_and_changes(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    with Catalog(out) as cat:
+        register_asset_dir(cat, write_asset(out / "a", "a"), source_hash="h", settings_hash="s")
+        assert cat.is_done("a", "h", "s")
+        assert not cat.is_done("a", "h2", "s")  # input changed
+        assert not cat.is_done("a", "h", "s2")  # settings changed
+        assert not cat.is_done("b", "h", "s")  # never built
+        cat.record_failure("a", "boom", source_hash="h", settings_hash="s")
+        assert not cat.is_done("a", "h", "s")  # failed items are retried
+        register_asset_dir(
+            cat, write_asset(out / "a", "a", "repaired"), source_hash="h", settings_hash="s"
+        )
+        assert cat.is_done("a", "h", "s")
+        assert cat.get("a").parts  # the failure's empty parts were replaced
+        (out / "a" / "asset.json").unlink()
+        (out / "a" / "report.json").unlink()
+        (out / "a").rmdir()
+        assert not cat.is_done("a", "h", "s")  # the folder is gone
+
+
+def test_upsert_is_atomic(tmp_path: Path) -> None:
+    with Catalog(tmp_path) as cat:
+        cat.upsert_asset(AssetRecord(id="x", status="ok"), [PartRecord("base")], [])
+        dup = [PartRecord("base"), PartRecord("base")]  # violates the primary key
+        with pytest.raises(sqlite3.IntegrityError):
+            cat.upsert_asset(AssetRecord(id="x", status="repaired"), dup, [])
+        row = cat.get("x")
+        assert row.status == "ok" and [p.name for p in row.parts] == ["base"]
+        with pytest.raises(ValueError, match="status"):
+            cat.upsert_asset(AssetRecord(id="y", status="great"))
+
+
+def test_wal_and_concurrent_reader(tmp_path: Path) -> None:
+    with Catalog(tmp_path) as writer, Catalog(tmp_path, readonly=True) as reader:
+        assert writer.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+        writer.upsert_asset(AssetRecord(id="a", status="ok"), [], [CheckRecord("loads", True)])
+        assert [r.id for r in reader.query()] == ["a"]
+        writer.upsert_asset(AssetRecord(id="b", status="failed", failure_reason="x"))
+        assert len(reader.query()) == 2
+
+
+def test_schema_version_guard(tmp_path: Path) -> None:
+    with pytest.raises(CatalogError, match="no catalog"):
+        Catalog(tmp_path, readonly=True).open()
+    with Catalog(tmp_path):
+        pass
+    conn = sqlite3.connect(tmp_path / "registry.sqlite")
+    conn.execute("PRAGMA user_version = 7")
+    conn.close()
+    with pytest.raises(CatalogError, match="newer pact"):
+        Catalog(tmp_path).open()
+    (tmp_path / "junk.sqlite").write_bytes(b"this is not a database at all" * 20)
+    with pytest.raises(CatalogError, match="not a readable catalog"):
+        Catalog(tmp_path / "junk.sqlite").open()
+
+
+def test_records_and_table(tmp_path: Path) -> None:
+    rec, parts, checks = records_from_asset_dir(write_asset(tmp_path / "a", "a"), generator="pact")
+    assert rec.generator == "pact" and len(parts) == 3 and len(checks) == 3
+    with pytest.raises(TypeError, match="unknown asset record fields"):
+        records_from_asset_dir(tmp_path / "a", colour="red")
+    with pytest.raises(CatalogError, match="not found"):
+        records_from_asset_dir(tmp_path / "missing")
+    console = Console(record=True, width=160)
+    console.print(format_table([rec, AssetRecord(id="z", status="failed", failure_reason="OOM")]))
+    text = console.export_text()
+    assert "prismatic,revolute" in text and "0.60x0.80x0.90" in text and "OOM" in text

@@ -1,0 +1,163 @@
+"""asset_pipeline.rig: mass properties, the rig, URDF and MJCF text."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+import trimesh
+from lxml import etree
+
+from asset_pipeline.rig import (
+    DENSITIES,
+    JointPhysics,
+    PhysicsDefaults,
+    build_rig,
+    mass_properties,
+    mjcf_string,
+    sanitize_inertia,
+    urdf_string,
+)
+from generator.articulated import ArticulatedObject, Joint, Part
+
+
+def _check_physical(inertia: np.ndarray) -> None:
+    np.testing.assert_allclose(inertia, inertia.T)
+    e = np.linalg.eigvalsh(inertia)
+    assert (e > 0).all()
+    for i in range(3):
+        assert e[i] <= e.sum() - e[i] + 1e-15
+
+
+def test_sanitize_inertia():
+    good = np.array([[2.0, 0.1, 0.0], [0.1, 3.0, 0.0], [0.0, 0.0, 4.0]])
+    np.testing.assert_allclose(sanitize_inertia(good), good, atol=1e-12)
+    for bad in (np.diag([1.0, 1.0, 0.0]), np.diag([1.0, 0.1, 0.1]), np.diag([1.0, -1e-9, 1.0])):
+        fixed = sanitize_inertia(bad)
+        _check_physical(fixed)
+        assert np.linalg.eigvalsh(fixed).max() == pytest.approx(1.0, rel=1e-3)
+
+
+def test_box_mass_properties_match_closed_form():
+    a, b, c = 0.5, 0.3, 0.02
+    box = trimesh.creation.box([a, b, c])
+    box.apply_translation([1.0, 2.0, 3.0])
+    mp = mass_properties(box, density=600.0)
+    m = 600.0 * a * b * c
+    assert mp.mass == pytest.approx(m)
+    np.testing.assert_allclose(mp.com, [1.0, 2.0, 3.0], atol=1e-9)
+    expected = np.diag([b * b + c * c, a * a + c * c, a * a + b * b]) * m / 12
+    np.testing.assert_allclose(mp.inertia, expected, rtol=1e-6, atol=1e-12)
+
+
+def test_overlapping_bodies_count_once_and_min_mass():
+    a = trimesh.creation.box([0.2, 0.2, 0.2])
+    b = trimesh.creation.box([0.2, 0.2, 0.2])
+    b.apply_translation([0.1, 0, 0])  # half overlaps a
+    both = trimesh.util.concatenate([a, b])
+    assert both.volume == pytest.approx(0.016)  # trimesh alone counts the overlap twice
+    mp = mass_properties(both, density=1000.0)
+    assert mp.mass == pytest.approx(1000.0 * 0.3 * 0.2 * 0.2, rel=1e-6)
+    np.testing.assert_allclose(mp.com, [0.05, 0, 0], atol=1e-9)
+    tiny = mass_properties(trimesh.creation.box([0.01, 0.01, 0.01]), 600.0, min_mass=0.05)
+    assert tiny.mass == pytest.approx(0.05)
+    _check_physical(tiny.inertia)
+
+
+def _object() -> ArticulatedObject:
+    base = trimesh.creation.box([0.5, 0.6, 0.8])
+    base.apply_translation([0, 0, 0.4])
+    base.visual.face_colors = [255, 0, 0, 255]
+    drawer = trimesh.creation.box([0.4, 0.5, 0.2])
+    drawer.apply_translation([0.1, 0, 0.2])
+    door = trimesh.creation.box([0.02, 0.5, 0.3])
+    door.apply_translation([0.26, 0, 0.6])
+    return ArticulatedObject(
+        [
+            Part("base", "base", base),
+            Part(
+                "drawer_0",
+                "drawer",
+                drawer,
+                joint=Joint("prismatic", [0.3, 0.0, 0.2], [1, 0, 0], 0.0, 0.3),
+                material="metal",
+            ),
+            Part(
+                "door_0",
+                "door",
+                door,
+                joint=Joint("revolute", [0.27, -0.25, 0.6], [0, 0, -1], 0.0, 1.5),
+            ),
+        ],
+        category="cabinet",
+    )
+
+
+def test_build_rig_frames_masses_and_files():
+    obj = _object()
+    physics = PhysicsDefaults(prismatic=JointPhysics(damping=3.0, friction=0.2, velocity=0.5))
+    rig = build_rig(obj, {"base": 1, "drawer_0": 2, "door_0": 1}, "cab", physics)
+    assert [link.name for link in rig.links] == ["base", "drawer_0", "door_0"]
+    drawer = rig.link("drawer_0")
+    assert drawer.collisions == ["collision/drawer_0_0.obj", "collision/drawer_0_1.obj"]
+    assert drawer.visual_glb == "visual/drawer_0.glb" and drawer.visual_obj == "visual/drawer_0.obj"
+    assert drawer.mass.mass == pytest.approx(DENSITIES["metal"] * 0.4 * 0.5 * 0.2)
+    np.testing.assert_allclose(drawer.mass.com, [0.1 - 0.3, 0, 0], atol=1e-7)  # link frame
+    np.testing.assert_allclose(rig.link("base").rgba, [1, 0, 0, 1])
+    j = {x.name: x for x in rig.joints}
+    assert j["joint_drawer_0"].physics.damping == 3.0  # override applies
+    assert j["joint_door_0"].physics == PhysicsDefaults().revolute
+    np.testing.assert_allclose(j["joint_door_0"].origin, [0.27, -0.25, 0.6])
+
+
+def test_urdf_text_is_valid_and_complete():
+    import yourdfpy
+
+    rig = build_rig(_object(), {"base": 3, "drawer_0": 2, "door_0": 1}, "cab")
+    text = urdf_string(rig)
+    assert text == urdf_string(rig)  # deterministic
+    urdf = yourdfpy.URDF.load(io.BytesIO(text.encode()), load_meshes=False, build_scene_graph=False)
+    assert urdf.validate()
+    assert len(urdf.link_map["base"].collisions) == 3
+    assert urdf.link_map["drawer_0"].visuals[0].geometry.mesh.filename == "visual/drawer_0.glb"
+    door = urdf.joint_map["joint_door_0"]
+    assert door.type == "revolute" and door.parent == "base" and door.child == "door_0"
+    np.testing.assert_allclose(door.axis, [0, 0, -1])
+    assert (door.limit.lower, door.limit.upper) == (0.0, 1.5)
+    assert door.limit.effort == 100.0 and door.limit.velocity == 2.0
+    inertial = urdf.link_map["drawer_0"].inertial
+    np.testing.assert_allclose(inertial.origin[:3, 3], [-0.2, 0, 0], atol=1e-7)
+    _check_physical(inertial.inertia)
+
+
+def test_mjcf_compiles_in_mujoco():
+    import mujoco
+
+    obj = _object()
+    counts = {"base": 1, "drawer_0": 1, "door_0": 1}
+    rig = build_rig(obj, counts, "cab")
+    assets = {}
+    for p in obj.parts:
+        m = p.mesh.copy()
+        m.apply_translation(-rig.link(p.name).frame_origin)
+        text = trimesh.exchange.obj.export_obj(m, include_color=False, include_texture=False)
+        assets[f"visual/{p.name}.obj"] = text.encode()
+        assets[f"collision/{p.name}_0.obj"] = text.encode()
+    xml = mjcf_string(rig)
+    root = etree.fromstring(xml.encode())
+    assert root.find("worldbody/body").get("name") == "base"
+    assert root.find("worldbody/body/freejoint") is None
+    model = mujoco.MjModel.from_xml_string(xml, assets)
+    assert model.njnt == 2 and model.nbody == 4
+    assert list(model.jnt_type) == [mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE]
+    np.testing.assert_allclose(model.jnt_range, [[0.0, 0.3], [0.0, 1.5]])
+    np.testing.assert_allclose(model.dof_damping, [2.0, 0.5])
+    drawer_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "drawer_0")
+    assert model.body_mass[drawer_id] == pytest.approx(rig.link("drawer_0").mass.mass)
+    visual = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "base_visual")
+    assert model.geom_contype[visual] == 0 and model.geom_conaffinity[visual] == 0
+    # the drawer body sits at its joint origin in the world
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.xpos[drawer_id], [0.3, 0.0, 0.2], atol=1e-9)
