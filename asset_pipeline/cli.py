@@ -200,6 +200,93 @@ def gallery(out: Path = typer.Argument(..., help="Output folder of a convert or 
         raise typer.Exit(2) from e
 
 
+@app.command()
+def convert(
+    images: Path = typer.Argument(..., help="Folder of images (+ .mask.png, + .json hints)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."),
+    generator: str = typer.Option("pact", help="pact or retrieval."),
+    workers: int = typer.Option(1, min=1, help="Local worker processes."),
+    executor: str = typer.Option("local", help="local (process pool) or ray."),
+    ray_address: str = typer.Option(None, help="Ray cluster address (with --executor ray)."),
+    force: bool = typer.Option(False, help="Redo items already converted with the same input and settings."),
+    validate: bool = typer.Option(True, "--validate/--no-validate", help="Validate and repair in SAPIEN."),
+    preview: bool = typer.Option(True, "--preview/--no-preview", help="Render preview.png per asset."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar or table."),
+    log_json: Path = typer.Option(None, help="Append one JSON line per item to this file ('-' = stdout)."),
+) -> None:
+    """Convert an image folder into validated, catalogued sim assets (resumable)."""
+    import json
+    import sys
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from asset_pipeline.batch import ConvertSettings, run_convert
+
+    settings = ConvertSettings(generator=generator, validate=validate, preview=preview)
+    log_file = None
+    if log_json is not None:
+        log_file = sys.stdout if str(log_json) == "-" else open(log_json, "a")  # noqa: SIM115
+    progress = Progress(
+        TextColumn("[bold]convert"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("{task.description}"),
+        console=console,
+        disable=quiet,
+    )
+    task = progress.add_task("", total=None)
+    running: dict[str, str] = {}
+
+    def on_start(n_todo: int, n_skipped: int) -> None:
+        progress.update(task, total=n_todo)
+        if n_skipped and not quiet:
+            console.print(f"skipping {n_skipped} item(s) already converted (use --force to redo)")
+
+    def on_stage(name: str, stage: str) -> None:
+        running[name] = stage
+        progress.update(task, description=" ".join(f"{n}:{s}" for n, s in list(running.items())[-3:]))
+
+    def on_result(r) -> None:  # noqa: ANN001
+        running.pop(r.name, None)
+        progress.advance(task)
+        if log_file is not None:
+            log_file.write(json.dumps({"event": "item", **r.__dict__}) + "\n")
+            log_file.flush()
+
+    try:
+        with progress:
+            summary = run_convert(
+                images, out, settings, workers=workers, executor=executor,
+                ray_address=ray_address, force=force,
+                on_start=on_start, on_stage=on_stage, on_result=on_result,
+            )
+    except (FileNotFoundError, ValueError) as e:
+        console.print(f"[red]error:[/red] {e}")
+        raise typer.Exit(2) from e
+    finally:
+        if log_file is not None and log_file is not sys.stdout:
+            log_file.close()
+    if not quiet:
+        table = Table(title=f"pact convert -> {out}")
+        for col in ("id", "status", "category", "seconds", "reason"):
+            table.add_column(col)
+        for r in summary.results:
+            colour = {"failed": "red", "repaired": "yellow"}.get(r.status, "green")
+            table.add_row(
+                r.id, f"[{colour}]{r.status}[/{colour}]", r.category,
+                f"{sum(r.stage_seconds.values()):.1f}", r.reason or "",
+            )
+        Console(stderr=True).print(table)
+        console.print(
+            f"{len(summary.results) - len(summary.failed)} converted, {len(summary.failed)} failed, "
+            f"{len(summary.skipped)} skipped; catalog {out / 'registry.sqlite'}; "
+            f"gallery: pact gallery {out}"
+        )
+    if summary.failed:
+        raise typer.Exit(1)
+
+
 def main() -> None:
     app()
 

@@ -60,8 +60,8 @@ MAX_SHRINK = 0.5
 #: Damping ceilings (N s/m for prismatic, N m s/rad for revolute) and friction floor.
 MAX_DAMPING = {"prismatic": 20.0, "revolute": 5.0}
 MIN_DAMPING = {"prismatic": 1.0, "revolute": 0.2}
-MIN_FRICTION = 0.05
-MAX_FRICTION = 0.5
+MIN_FRICTION = 0.1
+MAX_FRICTION = 2.0
 
 REPAIR_ORDER = ("hinge_on_part", "opens_outward", "drawer_engaged", "rest_drift")
 
@@ -172,19 +172,24 @@ def flip_axis(edit: AssetEdit, joint: str, reason: str) -> RepairRecord:
     mj = edit.mjcf_joint(joint)
     if mj is not None and mj.get("axis"):
         mj.set("axis", _vec(-np.array([float(v) for v in mj.get("axis", "").split()])))
-    mj_meta = edit.meta_joint(joint)
-    if mj_meta is not None and "axis" in mj_meta:
-        mj_meta["axis"] = (-np.asarray(mj_meta["axis"], dtype=float)).tolist()
+    meta = edit.meta_joint(joint)
+    if meta is not None:  # asset.json holds the axis in the object (base) frame
+        R = read_urdf(edit.urdf_path).joints[joint].origin[:3, :3]
+        meta["axis"] = (R @ after).tolist()
     return RepairRecord("flip_axis", joint, before.tolist(), after.tolist(), reason)
 
 
-def shorten_range(edit: AssetEdit, joint: str, details: dict[str, Any], reason: str) -> RepairRecord | str:
+def shorten_range(
+    edit: AssetEdit, joint: str, details: dict[str, Any], reason: str
+) -> RepairRecord | str:
     lower, upper = float(details["lower"]), float(details["upper"])
     need = ENGAGED_TARGET * float(details["length"]) - float(details["overlap"])
     new_upper = upper - need
     if new_upper - lower < MIN_RANGE_KEPT * (upper - lower) or new_upper - lower < 0.01:
-        return (f"{joint}: the range would shrink from {upper - lower:.3f} m to "
-                f"{new_upper - lower:.3f} m to keep the part engaged; the part is too short for its slide")
+        return (
+            f"{joint}: the range would shrink from {upper - lower:.3f} m to "
+            f"{new_upper - lower:.3f} m to keep the part engaged; the part is too short for its slide"
+        )
     edit.joint(joint).find("limit").set("upper", _fmt(new_upper))  # type: ignore[union-attr]
     mj = edit.mjcf_joint(joint)
     if mj is not None and mj.get("range"):
@@ -192,11 +197,20 @@ def shorten_range(edit: AssetEdit, joint: str, details: dict[str, Any], reason: 
     meta = edit.meta_joint(joint)
     if meta is not None:
         meta["upper"] = new_upper
-    return RepairRecord("shorten_prismatic_range", joint, [lower, upper], [lower, new_upper], reason)
+    return RepairRecord(
+        "shorten_prismatic_range", joint, [lower, upper], [lower, new_upper], reason
+    )
 
 
-def add_damping(edit: AssetEdit, joint: str, jtype: str, details: dict[str, Any],
-                drift: float, limit: float, reason: str) -> RepairRecord | str:
+def add_damping(
+    edit: AssetEdit,
+    joint: str,
+    jtype: str,
+    details: dict[str, Any],
+    drift: float,
+    limit: float,
+    reason: str,
+) -> RepairRecord | str:
     d0, f0 = float(details.get("damping", 0.0)), float(details.get("friction", 0.0))
     duration = float(details.get("duration", 2.0))
     tau = abs(float(details.get("gravity_force", 0.0)))
@@ -204,11 +218,17 @@ def add_damping(edit: AssetEdit, joint: str, jtype: str, details: dict[str, Any]
     # damping that would hold the measured gravity force to half the tolerance
     need = tau * duration / (0.5 * limit) if limit > 0 else cap
     d1 = min(cap, max(2.0 * d0, MIN_DAMPING.get(jtype, 0.2), min(need, cap)))
-    f1 = min(MAX_FRICTION, max(2.0 * f0, MIN_FRICTION))
+    # PhysX joint friction resists up to about ``friction * |joint load|``; the load of a
+    # resting part is about its weight, so holding the gravity force needs roughly
+    # tau / (m g) (measured: 0.5 holds an 18.7 kg oven door with 17 N m, 0.05 does not)
+    weight = 9.81 * max(float(details.get("mass", 0.0)), 1e-6)
+    f1 = min(MAX_FRICTION, max(4.0 * f0, MIN_FRICTION, 2.0 * tau / weight))
     if d1 <= d0 + 1e-12 and f1 <= f0 + 1e-12:
-        return (f"{joint}: drifts {drift:.4f} under a gravity force of {tau:.3f} even with damping "
-                f"{d0:g} and friction {f0:g} (ceilings {cap:g}, {MAX_FRICTION:g}); the part is not "
-                "balanced at rest")
+        return (
+            f"{joint}: drifts {drift:.4f} under a gravity force of {tau:.3f} even with damping "
+            f"{d0:g} and friction {f0:g} (ceilings {cap:g}, {MAX_FRICTION:g}); the part is not "
+            "balanced at rest"
+        )
     dyn = edit.joint(joint).find("dynamics")
     if dyn is None:
         dyn = ET.SubElement(edit.joint(joint), "dynamics")
@@ -221,11 +241,18 @@ def add_damping(edit: AssetEdit, joint: str, jtype: str, details: dict[str, Any]
     meta = edit.meta_joint(joint)
     if meta is not None:
         meta["damping"], meta["friction"] = d1, f1
-    return RepairRecord("add_damping", joint, {"damping": d0, "friction": f0},
-                        {"damping": d1, "friction": f1}, reason)
+    return RepairRecord(
+        "add_damping",
+        joint,
+        {"damping": d0, "friction": f0},
+        {"damping": d1, "friction": f1},
+        reason,
+    )
 
 
-def project_hinge(edit: AssetEdit, joint: str, details: dict[str, Any], reason: str) -> RepairRecord:
+def project_hinge(
+    edit: AssetEdit, joint: str, details: dict[str, Any], reason: str
+) -> RepairRecord:
     """Move the hinge onto the part's AABB surface; shift the link-frame geometry back."""
     spec = read_urdf(edit.urdf_path)
     js = spec.joints[joint]
@@ -276,7 +303,9 @@ def project_hinge(edit: AssetEdit, joint: str, details: dict[str, Any], reason: 
             inert.set("pos", _vec(p - delta))
     meta = edit.meta_joint(joint)
     if meta is not None and "origin" in meta:
-        meta["origin"] = (np.asarray(meta["origin"], dtype=float) + js.origin[:3, :3] @ delta).tolist()
+        meta["origin"] = (
+            np.asarray(meta["origin"], dtype=float) + js.origin[:3, :3] @ delta
+        ).tolist()
     if edit.meta is not None:
         h = edit.meta.get("handles", {}).get(child)
         if h is not None and "position_link" in h:
@@ -284,8 +313,9 @@ def project_hinge(edit: AssetEdit, joint: str, details: dict[str, Any], reason: 
     return RepairRecord("project_hinge_origin", joint, before.tolist(), after.tolist(), reason)
 
 
-def shrink_pieces(edit: AssetEdit, pairs: list[dict[str, Any]], root: str,
-                  reason: str) -> tuple[list[RepairRecord], list[str]]:
+def shrink_pieces(
+    edit: AssetEdit, pairs: list[dict[str, Any]], root: str, reason: str
+) -> tuple[list[RepairRecord], list[str]]:
     """Shrink the movable side(s) of overlapping piece pairs along the contact normal."""
     spec = read_urdf(edit.urdf_path)
     poses = spec.link_poses()
@@ -313,15 +343,26 @@ def shrink_pieces(edit: AssetEdit, pairs: list[dict[str, Any]], root: str,
             s = (v - c) @ n
             h = float(np.abs(s).max())
             if h <= 0 or amount / h > MAX_SHRINK:
-                problems.append(f"{ln} piece {k}: overlap {depth * 1000:.1f} mm would need more than "
-                                f"{MAX_SHRINK:.0%} of its {2 * h * 1000:.1f} mm extent")
+                problems.append(
+                    f"{ln} piece {k}: overlap {depth * 1000:.1f} mm would need more than "
+                    f"{MAX_SHRINK:.0%} of its {2 * h * 1000:.1f} mm extent"
+                )
                 continue
             scale = (h - amount) / h
             before = [float(s.min()), float(s.max())]
             verts[key] = v - np.outer(s * (1 - scale), n)
-            records.append(RepairRecord("shrink_piece", f"{ln}#{k}", {"extent_along_normal": before},
-                                        {"extent_along_normal": [before[0] * scale, before[1] * scale],
-                                         "normal": n.tolist()}, reason))
+            records.append(
+                RepairRecord(
+                    "shrink_piece",
+                    f"{ln}#{k}",
+                    {"extent_along_normal": before},
+                    {
+                        "extent_along_normal": [before[0] * scale, before[1] * scale],
+                        "normal": n.tolist(),
+                    },
+                    reason,
+                )
+            )
     for (ln, k), v in verts.items():
         piece = spec.links[ln].pieces[k]
         edit.set_file(piece.path, _write_obj(v, piece.path.read_text()).encode())
@@ -369,8 +410,13 @@ def plan_and_apply(
             done_joints.add(j)
             records.append(rec)
     for c in by_name.get("rest_penetration", []):
-        pairs = [p for p in c.details.get("pairs", [])
-                 if not ({spec.joint_of(ln).name for ln in p["links"] if spec.joint_of(ln)} & done_joints)]
+        pairs = [
+            p
+            for p in c.details.get("pairs", [])
+            if not (
+                {spec.joint_of(ln).name for ln in p["links"] if spec.joint_of(ln)} & done_joints
+            )
+        ]
         recs, probs = shrink_pieces(edit, pairs, root, f"{c.key}: {c.message}")
         records += recs
         problems += probs
@@ -383,6 +429,11 @@ def plan_and_apply(
         for r in records:
             r.round = round_
             r.files = files
-        log.info("%s: round %d: %d repairs: %s", asset_dir.name, round_, len(records),
-                 ", ".join(f"{r.kind}({r.target})" for r in records))
+        log.info(
+            "%s: round %d: %d repairs: %s",
+            asset_dir.name,
+            round_,
+            len(records),
+            ", ".join(f"{r.kind}({r.target})" for r in records),
+        )
     return records, list(dict.fromkeys(problems))

@@ -26,7 +26,9 @@ Collision-group policy (SAPIEN / PhysX filtering, see
 from __future__ import annotations
 
 import logging
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -86,8 +88,20 @@ def configure_urdf_loader(loader: Any, options: SimOptions = DEFAULT_SIM_OPTIONS
     loader.set_material(options.static_friction, options.dynamic_friction, options.restitution)
 
 
+def urdf_joint_friction(urdf: str | Path) -> dict[str, float]:
+    """``<dynamics friction>`` of every joint of a URDF, by joint name."""
+    out = {}
+    for el in ET.parse(urdf).getroot().findall("joint"):
+        dyn = el.find("dynamics")
+        if dyn is not None and dyn.get("friction") is not None:
+            out[el.get("name", "")] = float(dyn.get("friction", "0"))
+    return out
+
+
 def apply_sim_options(
-    articulation: sapien.physx.PhysxArticulation, options: SimOptions = DEFAULT_SIM_OPTIONS
+    articulation: sapien.physx.PhysxArticulation,
+    options: SimOptions = DEFAULT_SIM_OPTIONS,
+    urdf: str | Path | None = None,
 ) -> None:
     """Apply ``options`` to a loaded articulation, in place.
 
@@ -97,6 +111,10 @@ def apply_sim_options(
     :func:`configure_urdf_loader` (or ``load_articulation(..., fix_root=...)``) and
     ``scene.set_timestep(options.timestep)``. For a ManiSkill ``Articulation``
     wrapper, call this on each of its ``_objs``.
+
+    ``urdf``: the asset's URDF; its joint friction is applied. SAPIEN 3.0.3's
+    ``ArticulationBuilder`` drops the ``friction`` it parses (every joint gets
+    PhysX's default 0.05, measured), so pass the URDF wherever friction matters.
     """
     material = make_material(options)
     for link in articulation.links:
@@ -110,5 +128,10 @@ def apply_sim_options(
             else:
                 groups[2] |= 1 << OBJECT_IGNORE_BIT
             shape.set_collision_groups(groups)
+    if urdf is not None:
+        friction = urdf_joint_friction(urdf)
+        for joint in articulation.get_active_joints():
+            if joint.name in friction:
+                joint.set_friction(friction[joint.name])
     articulation.set_solver_position_iterations(options.solver_position_iterations)
     articulation.set_solver_velocity_iterations(options.solver_velocity_iterations)

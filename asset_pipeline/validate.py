@@ -354,7 +354,9 @@ def read_urdf(path: str | Path) -> UrdfSpec:
                 link.com = origin_matrix(o)[:3, 3]
                 i = inertial.find("inertia")
                 if i is not None:
-                    g = {k: float(i.get(k, "0")) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+                    g = {
+                        k: float(i.get(k, "0")) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+                    }
                     link.inertia = np.array(
                         [
                             [g["ixx"], g["ixy"], g["ixz"]],
@@ -365,7 +367,9 @@ def read_urdf(path: str | Path) -> UrdfSpec:
             for col in el.findall("collision"):
                 mesh = col.find("geometry/mesh")
                 if mesh is None:
-                    raise AssetFormatError(f"{path}: link {link.name}: only mesh collisions are supported")
+                    raise AssetFormatError(
+                        f"{path}: link {link.name}: only mesh collisions are supported"
+                    )
                 fn = mesh.get("filename", "")
                 link.pieces.append(
                     PieceSpec(
@@ -481,30 +485,56 @@ def static_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
             ok,
             value=roots,
             tolerance="exactly one root link",
-            message="" if ok else f"roots {roots}; unknown links in {bad_refs}; several parents: {multi}",
+            message=""
+            if ok
+            else f"roots {roots}; unknown links in {bad_refs}; several parents: {multi}",
         )
     )
     for j in spec.movable_joints:
         n = float(np.linalg.norm(j.axis))
         ok = bool(np.isfinite(j.axis).all() and abs(n - 1.0) <= tol.axis_norm)
         checks.append(
-            Check("axis_unit", "static", j.name, ok, value=n, tolerance=tol.axis_norm,
-                  message="" if ok else f"axis {j.axis.tolist()} is not a finite unit vector")
+            Check(
+                "axis_unit",
+                "static",
+                j.name,
+                ok,
+                value=n,
+                tolerance=tol.axis_norm,
+                message="" if ok else f"axis {j.axis.tolist()} is not a finite unit vector",
+            )
         )
         ok = bool(math.isfinite(j.lower) and math.isfinite(j.upper) and j.lower < j.upper)
         checks.append(
-            Check("limits_ordered", "static", j.name, ok, value=[j.lower, j.upper],
-                  tolerance="finite, lower < upper",
-                  message="" if ok else f"limits [{j.lower}, {j.upper}] are not finite and ordered "
-                  "(lower = closed); fix the joint range in object.json and rebuild")
+            Check(
+                "limits_ordered",
+                "static",
+                j.name,
+                ok,
+                value=[j.lower, j.upper],
+                tolerance="finite, lower < upper",
+                message=""
+                if ok
+                else f"limits [{j.lower}, {j.upper}] are not finite and ordered "
+                "(lower = closed); fix the joint range in object.json and rebuild",
+            )
         )
     for link in spec.links.values():
         m = link.mass
         ok = m is not None and math.isfinite(m) and m > 0
         checks.append(
-            Check("mass_positive", "static", link.name, bool(ok), value=m, tolerance="> 0",
-                  message="" if ok else f"mass {m} must be finite and > 0 (SAPIEN would silently "
-                  "replace it from the collision shapes); rebuild with a material density")
+            Check(
+                "mass_positive",
+                "static",
+                link.name,
+                bool(ok),
+                value=m,
+                tolerance="> 0",
+                message=""
+                if ok
+                else f"mass {m} must be finite and > 0 (SAPIEN would silently "
+                "replace it from the collision shapes); rebuild with a material density",
+            )
         )
         checks.append(_inertia_check(link, tol))
         checks.append(_hull_check(link, tol))
@@ -521,17 +551,35 @@ def static_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
 def _inertia_check(link: LinkSpec, tol: Tolerances) -> Check:
     inertia = link.inertia
     if inertia is None or not np.isfinite(inertia).all():
-        return Check("inertia_valid", "static", link.name, False, value=None,
-                     tolerance="positive definite, triangle inequality",
-                     message="missing or non-finite <inertia>")
+        return Check(
+            "inertia_valid",
+            "static",
+            link.name,
+            False,
+            value=None,
+            tolerance="positive definite, triangle inequality",
+            message="missing or non-finite <inertia>",
+        )
     eig = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
     scale = max(float(np.abs(eig).max()), 1e-12)
     pd = bool((eig > tol.inertia_rel * scale).all())
-    tri = bool(all(eig[i] <= eig[(i + 1) % 3] + eig[(i + 2) % 3] + tol.inertia_rel * scale for i in range(3)))
+    tri = bool(
+        all(
+            eig[i] <= eig[(i + 1) % 3] + eig[(i + 2) % 3] + tol.inertia_rel * scale
+            for i in range(3)
+        )
+    )
     ok = pd and tri
     msg = "" if ok else ("not positive definite" if not pd else "violates I_i <= I_j + I_k")
-    return Check("inertia_valid", "static", link.name, ok, value=eig.tolist(),
-                 tolerance="positive definite, triangle inequality", message=msg)
+    return Check(
+        "inertia_valid",
+        "static",
+        link.name,
+        ok,
+        value=eig.tolist(),
+        tolerance="positive definite, triangle inequality",
+        message=msg,
+    )
 
 
 def _hull_check(link: LinkSpec, tol: Tolerances) -> Check:
@@ -562,12 +610,28 @@ def _hull_check(link: LinkSpec, tol: Tolerances) -> Check:
         "vertices": [min(counts), max(counts)] if counts else None,
         "min_thickness": min(thick) if thick else None,
     }
-    msg = "" if ok else ("no collision pieces" if not link.pieces else
-                         "; ".join(f"{b['file']}: {b['problem']}" for b in bad))
-    return Check("collision_hulls", "static", link.name, ok, value=value,
-                 tolerance={"vertices": [tol.hull_min_vertices, tol.hull_max_vertices],
-                            "min_thickness": tol.hull_min_thickness},
-                 message=msg, details={"bad": bad})
+    msg = (
+        ""
+        if ok
+        else (
+            "no collision pieces"
+            if not link.pieces
+            else "; ".join(f"{b['file']}: {b['problem']}" for b in bad)
+        )
+    )
+    return Check(
+        "collision_hulls",
+        "static",
+        link.name,
+        ok,
+        value=value,
+        tolerance={
+            "vertices": [tol.hull_min_vertices, tol.hull_max_vertices],
+            "min_thickness": tol.hull_min_thickness,
+        },
+        message=msg,
+        details={"bad": bad},
+    )
 
 
 def hinge_offset(axis: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, np.ndarray]:
@@ -599,14 +663,23 @@ def hinge_offset(axis: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[floa
 
 def _hinge_check(j: JointSpec, pieces: list[np.ndarray], tol: Tolerances) -> Check:
     if not pieces or not any(len(v) for v in pieces):
-        return Check("hinge_on_part", "static", j.name, False, message="part has no collision geometry")
+        return Check(
+            "hinge_on_part", "static", j.name, False, message="part has no collision geometry"
+        )
     allv = np.concatenate([v for v in pieces if len(v)])
     lo, hi = allv.min(0), allv.max(0)
     d, target = hinge_offset(j.unit_axis, lo, hi)
     ok = d <= tol.hinge_offset
-    return Check("hinge_on_part", "static", j.name, ok, value=d, tolerance=tol.hinge_offset,
-                 message="" if ok else f"hinge line is {d:.3f} m from the part's bounding box surface",
-                 details={"target_link": target.tolist(), "aabb": [lo.tolist(), hi.tolist()]})
+    return Check(
+        "hinge_on_part",
+        "static",
+        j.name,
+        ok,
+        value=d,
+        tolerance=tol.hinge_offset,
+        message="" if ok else f"hinge line is {d:.3f} m from the part's bounding box surface",
+        details={"target_link": target.tolist(), "aabb": [lo.tolist(), hi.tolist()]},
+    )
 
 
 # --------------------------------------------------------------------------- SAPIEN loading
@@ -638,7 +711,7 @@ def load_physics(scene: Any, urdf: Path, options: SimOptions, fix_root: bool | N
     for lb in builder.link_builders:
         lb.visual_records = []
     art = builder.build()
-    apply_sim_options(art, options)
+    apply_sim_options(art, options, urdf=urdf)
     return art
 
 
@@ -656,23 +729,43 @@ def load_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list[Ch
     try:
         art = load_physics(scene, spec.path, options)
     except Exception as e:  # noqa: BLE001 - SAPIEN raises many types
-        return [Check("sapien_load", "load", "asset", False, value=str(e), tolerance="loads",
-                      message=f"SAPIEN cannot load the URDF: {e}")]
+        return [
+            Check(
+                "sapien_load",
+                "load",
+                "asset",
+                False,
+                value=str(e),
+                tolerance="loads",
+                message=f"SAPIEN cannot load the URDF: {e}",
+            )
+        ]
     checks = [Check("sapien_load", "load", "asset", True, value="loaded", tolerance="loads")]
     links = {link.name: link for link in art.links}
     for name, link in spec.links.items():
         n = len(links[name].collision_shapes) if name in links else 0
         ok = n == len(link.pieces)
         checks.append(
-            Check("collision_shapes", "load", name, ok, value=n, tolerance=len(link.pieces),
-                  message="" if ok else f"SAPIEN made {n} of {len(link.pieces)} collision shapes "
-                  "(it drops pieces it cannot cook)")
+            Check(
+                "collision_shapes",
+                "load",
+                name,
+                ok,
+                value=n,
+                tolerance=len(link.pieces),
+                message=""
+                if ok
+                else f"SAPIEN made {n} of {len(link.pieces)} collision shapes "
+                "(it drops pieces it cannot cook)",
+            )
         )
     sj = {j.name: j for j in art.get_joints()}
     for j in spec.movable_joints:
         s = sj.get(j.name)
         if s is None:
-            checks.append(Check("joint_matches_urdf", "load", j.name, False, message="joint missing"))
+            checks.append(
+                Check("joint_matches_urdf", "load", j.name, False, message="joint missing")
+            )
             continue
         problems = []
         if s.type not in _SAPIEN_TYPES.get(j.type, ()):
@@ -687,9 +780,15 @@ def load_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list[Ch
         if np.isfinite(want).all() and np.linalg.norm(ax - want) > 1e-3:
             problems.append(f"axis {ax.round(4).tolist()} != {want.round(4).tolist()}")
         checks.append(
-            Check("joint_matches_urdf", "load", j.name, not problems,
-                  value={"type": s.type, "limits": lim.tolist()},
-                  tolerance=tol.limit_match, message="; ".join(problems))
+            Check(
+                "joint_matches_urdf",
+                "load",
+                j.name,
+                not problems,
+                value={"type": s.type, "limits": lim.tolist()},
+                tolerance=tol.limit_match,
+                message="; ".join(problems),
+            )
         )
     return checks
 
@@ -790,11 +889,22 @@ def kinematic_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
         depth = w["depth"] if w else 0.0
         bad = [p for p in pairs if p["depth"] > tol.penetration]
         checks.append(
-            Check(name, "kinematic", "asset", not bad, value=depth, tolerance=tol.penetration,
-                  message="" if not bad else "; ".join(
-                      f"{p['links'][0]}#{p['pieces'][0]} / {p['links'][1]}#{p['pieces'][1]} overlap "
-                      f"{p['depth'] * 1000:.1f} mm" for p in bad[:4]),
-                  details={"pairs": bad, "qpos": q})
+            Check(
+                name,
+                "kinematic",
+                "asset",
+                not bad,
+                value=depth,
+                tolerance=tol.penetration,
+                message=""
+                if not bad
+                else "; ".join(
+                    f"{p['links'][0]}#{p['pieces'][0]} / {p['links'][1]}#{p['pieces'][1]} overlap "
+                    f"{p['depth'] * 1000:.1f} mm"
+                    for p in bad[:4]
+                ),
+                details={"pairs": bad, "qpos": q},
+            )
         )
     base = spec.roots[0] if spec.roots else None
     base_centroid = link_centroid(pieces.get(base, [])) if base else np.zeros(3)
@@ -813,10 +923,19 @@ def kinematic_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
         depth = worst["depth"] if worst else 0.0
         ok = depth <= tol.penetration
         checks.append(
-            Check("sweep_penetration", "kinematic", j.name, ok, value=depth, tolerance=tol.penetration,
-                  message="" if ok else f"{worst['links'][0]} and {worst['links'][1]} overlap "  # type: ignore[index]
-                  f"{depth * 1000:.1f} mm at q={worst['q']:.3f} ({worst['mode']})",  # type: ignore[index]
-                  details={"worst": worst})
+            Check(
+                "sweep_penetration",
+                "kinematic",
+                j.name,
+                ok,
+                value=depth,
+                tolerance=tol.penetration,
+                message=""
+                if ok
+                else f"{worst['links'][0]} and {worst['links'][1]} overlap "  # type: ignore[index]
+                f"{depth * 1000:.1f} mm at q={worst['q']:.3f} ({worst['mode']})",  # type: ignore[index]
+                details={"worst": worst},
+            )
         )
         child = [v for v in pieces.get(j.child, []) if len(v)]
         if not child:
@@ -829,13 +948,24 @@ def kinematic_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
             qpos = dict(closed)
             qpos[j.name] = j.lower + frac * (j.upper - j.lower)
             c1 = _transform(spec.link_poses(qpos)[j.child], c_local[None])[0]
-            increase.append(float(np.linalg.norm(c1 - base_centroid) - np.linalg.norm(c0 - base_centroid)))
+            increase.append(
+                float(np.linalg.norm(c1 - base_centroid) - np.linalg.norm(c0 - base_centroid))
+            )
         # at least the full opening must move away; a first step inward is also a fault
         ok = increase[1] > tol.outward_min and increase[0] > -tol.outward_min
         checks.append(
-            Check("opens_outward", "kinematic", j.name, ok, value=increase[1], tolerance=tol.outward_min,
-                  message="" if ok else "opening moves the part toward the base's centre (axis inverted?)",
-                  details={"increase_at_10pct": increase[0], "increase_at_upper": increase[1]})
+            Check(
+                "opens_outward",
+                "kinematic",
+                j.name,
+                ok,
+                value=increase[1],
+                tolerance=tol.outward_min,
+                message=""
+                if ok
+                else "opening moves the part toward the base's centre (axis inverted?)",
+                details={"increase_at_10pct": increase[0], "increase_at_upper": increase[1]},
+            )
         )
         if j.type == "prismatic":
             checks.append(_engagement_check(j, spec, child, base_all, opened, closed, tol))
@@ -862,10 +992,19 @@ def _engagement_check(
     overlap = float(min(cv.max(), bv.max()) - max(cv.min(), bv.min()))
     frac = overlap / length if length > 0 else 0.0
     ok = frac >= tol.min_engaged_fraction
-    return Check("drawer_engaged", "kinematic", j.name, ok, value=frac, tolerance=tol.min_engaged_fraction,
-                 message="" if ok else f"at its upper limit the part keeps {overlap * 1000:.0f} mm "
-                 f"({frac:.0%}) of its {length * 1000:.0f} mm inside the base",
-                 details={"overlap": overlap, "length": length, "upper": j.upper, "lower": j.lower})
+    return Check(
+        "drawer_engaged",
+        "kinematic",
+        j.name,
+        ok,
+        value=frac,
+        tolerance=tol.min_engaged_fraction,
+        message=""
+        if ok
+        else f"at its upper limit the part keeps {overlap * 1000:.0f} mm "
+        f"({frac:.0%}) of its {length * 1000:.0f} mm inside the base",
+        details={"overlap": overlap, "length": length, "upper": j.upper, "lower": j.lower},
+    )
 
 
 # --------------------------------------------------------------------------- dynamic
@@ -879,7 +1018,7 @@ def _effective_inertia(art: Any, joint: Any, jtype: str) -> float:
         return max(m, 1e-3)
     jp = np.asarray(joint.get_global_pose().to_transformation_matrix())
     a, p = jp[:3, 0], jp[:3, 3]
-    cm = np.asarray((link.pose * link.cmass_local_pose).to_transformation_matrix())
+    cm = np.asarray((link.entity_pose * link.cmass_local_pose).to_transformation_matrix())
     R = cm[:3, :3]
     inertia = R @ np.diag(np.asarray(link.inertia, dtype=float)) @ R.T
     r = cm[:3, 3] - p
@@ -900,11 +1039,12 @@ def dynamic_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list
     names = [j.name for j in art.get_active_joints()]
     spec_of = {j.name: j for j in movable}
     lower = np.array([spec_of[n].lower for n in names], dtype=float)
-    upper = np.array([spec_of[n].upper for n in names], dtype=float)
     art.set_qpos(lower.astype(np.float32))
     art.set_qvel(np.zeros(len(names), dtype=np.float32))
     # --- rest under gravity, no drive (the URDF's damping acts, as in the tasks)
     q0 = np.asarray(art.get_qpos(), dtype=float)
+    tau = -np.asarray(art.compute_passive_force(True, False), dtype=float)  # gravity, at start
+    masses = {n: float(joints[n].child_link.mass) for n in names}
     maxdev = np.zeros(len(names))
     for _ in range(round(tol.settle_time / dt)):
         scene.step()
@@ -917,7 +1057,6 @@ def dynamic_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list
     if not (np.isfinite(q).all() and np.isfinite(qd).all()):
         finite_ok = False
         finite_where.append("rest")
-    tau = -np.asarray(art.compute_passive_force(True, False), dtype=float)  # gravity torque at end
     for i, n in enumerate(names):
         js = spec_of[n]
         lin = js.type == "prismatic"
@@ -925,12 +1064,25 @@ def dynamic_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list
         vlim = tol.max_linear_velocity if lin else tol.max_angular_velocity
         ok = bool(np.isfinite(maxdev[i]) and maxdev[i] <= lim and abs(qd[i]) <= vlim)
         checks.append(
-            Check("rest_drift", "dynamic", n, ok, value={"drift": maxdev[i], "speed": abs(qd[i])},
-                  tolerance={"drift": lim, "speed": vlim},
-                  message="" if ok else f"drifts {maxdev[i]:.4f} {'m' if lin else 'rad'} in "
-                  f"{tol.settle_time:g} s under gravity (speed {abs(qd[i]):.3f})",
-                  details={"gravity_force": float(tau[i]), "damping": js.damping,
-                           "friction": js.friction, "duration": tol.settle_time})
+            Check(
+                "rest_drift",
+                "dynamic",
+                n,
+                ok,
+                value={"drift": maxdev[i], "speed": abs(qd[i])},
+                tolerance={"drift": lim, "speed": vlim},
+                message=""
+                if ok
+                else f"drifts {maxdev[i]:.4f} {'m' if lin else 'rad'} in "
+                f"{tol.settle_time:g} s under gravity (speed {abs(qd[i]):.3f})",
+                details={
+                    "gravity_force": float(tau[i]),
+                    "mass": masses[n],
+                    "damping": js.damping,
+                    "friction": js.friction,
+                    "duration": tol.settle_time,
+                },
+            )
         )
     # --- PD drive, one joint at a time, the others held closed
     art.set_qpos(lower.astype(np.float32))
@@ -961,6 +1113,8 @@ def dynamic_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list
             joints[n].set_drive_target(float(goal))
             t_hit = None
             for s in range(steps):
+                # gravity compensation, as a robot's PD controller balances passive forces
+                art.set_qf(art.compute_passive_force(True, True))
                 scene.step()
                 qi = float(art.get_qpos()[i])
                 if not math.isfinite(qi):
@@ -974,19 +1128,33 @@ def dynamic_checks(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> list
             reached_q.append(float(art.get_qpos()[i]))
         ok = all(t is not None for t in times)
         checks.append(
-            Check("drive_reach", "dynamic", n, ok, value={"open_s": times[0], "close_s": times[1]},
-                  tolerance={"time_s": tol.drive_time, "error": tol.drive_error * rng},
-                  message="" if ok else f"PD drive jammed: reached q={reached_q} toward "
-                  f"[{target:.3f}, {js.lower:.3f}] within {tol.drive_time:g} s",
-                  details={"gains": gains[n], "q": reached_q})
+            Check(
+                "drive_reach",
+                "dynamic",
+                n,
+                ok,
+                value={"open_s": times[0], "close_s": times[1]},
+                tolerance={"time_s": tol.drive_time, "error": tol.drive_error * rng},
+                message=""
+                if ok
+                else f"PD drive jammed: reached q={reached_q} toward "
+                f"[{target:.3f}, {js.lower:.3f}] within {tol.drive_time:g} s",
+                details={"gains": gains[n], "q": reached_q},
+            )
         )
     # --- free base on the floor
     checks.append(_free_base_check(spec, tol, options))
-    if not finite_ok:
-        pass
-    checks.append(Check("finite", "dynamic", "asset", finite_ok, value=finite_where or None,
-                        tolerance="no NaN/inf", message="" if finite_ok else
-                        f"non-finite state in {finite_where}"))
+    checks.append(
+        Check(
+            "finite",
+            "dynamic",
+            "asset",
+            finite_ok,
+            value=finite_where or None,
+            tolerance="no NaN/inf",
+            message="" if finite_ok else f"non-finite state in {finite_where}",
+        )
+    )
     return checks
 
 
@@ -994,8 +1162,13 @@ def _free_base_check(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> Ch
     import sapien
 
     scene = physics_scene(options)
-    scene.add_ground(0.0, render=False, material=sapien.physx.PhysxMaterial(
-        options.static_friction, options.dynamic_friction, options.restitution))
+    scene.add_ground(
+        0.0,
+        render=False,
+        material=sapien.physx.PhysxMaterial(
+            options.static_friction, options.dynamic_friction, options.restitution
+        ),
+    )
     art = load_physics(scene, spec.path, options, fix_root=False)
     art.set_sleep_threshold(0.0)
     start = np.array([0.0, 0.0, 0.002])
@@ -1007,20 +1180,41 @@ def _free_base_check(spec: UrdfSpec, tol: Tolerances, options: SimOptions) -> Ch
         scene.step()
     T = np.asarray(art.get_root_pose().to_transformation_matrix())
     if not np.isfinite(T).all():
-        return Check("free_base_stable", "dynamic", "asset", False, value=None,
-                     message="non-finite base pose")
+        return Check(
+            "free_base_stable",
+            "dynamic",
+            "asset",
+            False,
+            value=None,
+            message="non-finite base pose",
+        )
     tilt = float(math.acos(float(np.clip(T[2, 2], -1, 1))))
     disp = float(np.linalg.norm(T[:3, 3] - start))
     v = float(np.linalg.norm(art.get_root_linear_velocity()))
     wv = float(np.linalg.norm(art.get_root_angular_velocity()))
-    ok = (tilt <= tol.free_tilt and disp <= tol.free_displacement
-          and v <= tol.max_linear_velocity and wv <= tol.max_angular_velocity)
-    return Check("free_base_stable", "dynamic", "asset", ok,
-                 value={"tilt": tilt, "displacement": disp, "speed": v, "angular_speed": wv},
-                 tolerance={"tilt": tol.free_tilt, "displacement": tol.free_displacement,
-                            "speed": tol.max_linear_velocity, "angular_speed": tol.max_angular_velocity},
-                 message="" if ok else f"free on the floor the base tilts {math.degrees(tilt):.1f} deg "
-                 f"and moves {disp * 1000:.0f} mm")
+    ok = (
+        tilt <= tol.free_tilt
+        and disp <= tol.free_displacement
+        and v <= tol.max_linear_velocity
+        and wv <= tol.max_angular_velocity
+    )
+    return Check(
+        "free_base_stable",
+        "dynamic",
+        "asset",
+        ok,
+        value={"tilt": tilt, "displacement": disp, "speed": v, "angular_speed": wv},
+        tolerance={
+            "tilt": tol.free_tilt,
+            "displacement": tol.free_displacement,
+            "speed": tol.max_linear_velocity,
+            "angular_speed": tol.max_angular_velocity,
+        },
+        message=""
+        if ok
+        else f"free on the floor the base tilts {math.degrees(tilt):.1f} deg "
+        f"and moves {disp * 1000:.0f} mm",
+    )
 
 
 # --------------------------------------------------------------------------- running
@@ -1049,14 +1243,27 @@ def check_asset(
     t0 = time.perf_counter()
     try:
         spec = read_urdf(urdf)
-        missing = [p.filename for lk in spec.links.values() for p in lk.pieces if not p.path.is_file()]
+        missing = [
+            p.filename for lk in spec.links.values() for p in lk.pieces if not p.path.is_file()
+        ]
     except AssetFormatError as e:
         timings["static"] = timings.get("static", 0.0) + time.perf_counter() - t0
-        return [Check("urdf", "static", "asset", False, value=str(e), tolerance="parses",
-                      message=str(e))]
-    checks = [Check("urdf", "static", "asset", not missing, value=missing or "parsed",
-                    tolerance="parses, files exist",
-                    message="" if not missing else f"missing collision files: {missing}")]
+        return [
+            Check(
+                "urdf", "static", "asset", False, value=str(e), tolerance="parses", message=str(e)
+            )
+        ]
+    checks = [
+        Check(
+            "urdf",
+            "static",
+            "asset",
+            not missing,
+            value=missing or "parsed",
+            tolerance="parses, files exist",
+            message="" if not missing else f"missing collision files: {missing}",
+        )
+    ]
     timings["static"] = timings.get("static", 0.0) + time.perf_counter() - t0
     if missing:
         return checks

@@ -3,7 +3,8 @@
 - :mod:`sim_envs.catalog`: where assets come from (a folder or an SQLite catalog),
   filtered by category and joint type;
 - :mod:`sim_envs.scene`: loading one asset into a ManiSkill scene (fixed base,
-  friction material, collision groups) and placement helpers.
+  friction material and collision policy from asset_pipeline.sim_options)
+  and placement helpers.
 """
 
 from sim_envs.catalog import (
@@ -17,7 +18,7 @@ from sim_envs.catalog import (
     open_source,
     read_asset,
 )
-from sim_envs.scene import LoadOptions, default_load_options, load_asset
+from sim_envs.scene import configure_ground, load_asset, robot_ignores_ground
 
 __all__ = [
     "AssetRecord",
@@ -26,10 +27,10 @@ __all__ = [
     "CatalogSource",
     "FolderSource",
     "ListSource",
-    "LoadOptions",
     "MovablePart",
-    "default_load_options",
+    "configure_ground",
     "load_asset",
     "open_source",
     "read_asset",
+    "robot_ignores_ground",
 ]

@@ -1,30 +1,35 @@
 """Load built assets into ManiSkill3 scenes: fixed base, materials, collision groups, placement.
 
-Collision groups (SAPIEN's four 32-bit words per shape; two shapes never collide
-when their third words share a bit):
+Physics options come from :mod:`asset_pipeline.sim_options` (the same
+:class:`~asset_pipeline.sim_options.SimOptions` validation proves assets with):
+friction material, contact offsets, solver iterations and the object's collision
+policy (by default sibling parts collide with each other and with the robot; a
+part never collides with its parent, PhysX skips that pair).
 
-- every link of a loaded object gets ``OBJECT_COLLISION_BIT``, so sibling parts do
-  not push on each other (PhysX never reports link-parent contacts anyway: a part
-  is held only by its joint limits); the ground gets the same bit, so a door
-  swinging down to the floor (oven, dishwasher) is not stopped by it;
-- the robot's links and the ground share ``ROBOT_GROUND_COLLISION_BIT``: the fixed
-  Panda is mounted at whatever height puts the handle in reach, its base may be
-  below the floor plane and must not fight it.
-
-When ``asset_pipeline.sim_options`` exists its friction material and collision
-policy are used (the same options validation uses); otherwise the defaults below.
+On top of that, for the tasks: the robot's links and the ground share
+``ROBOT_GROUND_COLLISION_BIT`` in group 2 (SAPIEN: two shapes sharing a group-2 bit
+do not collide). The fixed Panda is mounted at whatever height puts the handle in
+reach, its base may sit below the floor plane and must not fight it. With
+``self_collisions=False`` the ground also joins the object's ignore bit, as in
+ManiSkill's cabinet tasks.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sapien
 import torch
 
+from asset_pipeline.sim_options import (
+    DEFAULT_SIM_OPTIONS,
+    OBJECT_IGNORE_BIT,
+    SimOptions,
+    apply_sim_options,
+    configure_urdf_loader,
+)
 from sim_envs.catalog import AssetRecord
 
 if TYPE_CHECKING:
@@ -33,51 +38,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-OBJECT_COLLISION_BIT = 29
 ROBOT_GROUND_COLLISION_BIT = 28
-
-
-@dataclass(frozen=True)
-class LoadOptions:
-    """How an asset is loaded: friction material and whether its own links collide."""
-
-    static_friction: float = 1.0
-    dynamic_friction: float = 1.0
-    restitution: float = 0.0
-    self_collision: bool = False
-    """False (default): no contacts between the object's links (ManiSkill's cabinet policy)."""
-    collide_with_ground: bool = False
-
-
-def default_load_options() -> LoadOptions:
-    """Loader options from ``asset_pipeline.sim_options`` when it exists, else the defaults."""
-    try:
-        from asset_pipeline import sim_options  # noqa: PLC0415  (optional, written by another issue)
-    except ImportError:
-        return LoadOptions()
-    return _options_from_module(sim_options)
-
-
-def _options_from_module(mod: Any) -> LoadOptions:
-    kw: dict[str, Any] = {}
-    material = None
-    for name in ("FRICTION_MATERIAL", "MATERIAL", "friction_material", "material"):
-        material = getattr(mod, name, None)
-        if material is not None:
-            break
-    if callable(material):
-        material = material()
-    if material is not None:
-        get = material.get if isinstance(material, dict) else lambda k, d=None: getattr(material, k, d)
-        for k in ("static_friction", "dynamic_friction", "restitution"):
-            v = get(k, None)
-            if v is not None:
-                kw[k] = float(v)
-    for name in ("SELF_COLLISION", "self_collision"):
-        v = getattr(mod, name, None)
-        if isinstance(v, bool):
-            kw["self_collision"] = v
-    return LoadOptions(**kw)
 
 
 def load_asset(
@@ -85,19 +46,19 @@ def load_asset(
     record: AssetRecord,
     scene_idxs: list[int] | None = None,
     name: str | None = None,
-    options: LoadOptions | None = None,
+    options: SimOptions = DEFAULT_SIM_OPTIONS,
     initial_pose: sapien.Pose | None = None,
 ) -> Articulation:
     """Build ``record``'s URDF as a fixed-base articulation in the sub-scenes ``scene_idxs``.
 
     One ``<collision>`` element per convex piece (the built-asset layout), so the
-    loader's multiple-collisions option stays off. Every link keeps its URDF name.
+    loader's multiple-collisions option stays off. Links keep their URDF (part) names.
+    Must run while the scene is being built (``_load_scene``), before GPU setup.
     """
-    options = options or default_load_options()
     loader = scene.create_urdf_loader()
+    configure_urdf_loader(loader, options)
     loader.fix_root_link = True
     loader.load_multiple_collisions_from_file = False
-    loader.set_material(options.static_friction, options.dynamic_friction, options.restitution)
     builders = loader.parse(str(record.urdf))["articulation_builders"]
     if len(builders) != 1:
         raise ValueError(f"{record.urdf}: expected one articulation, found {len(builders)}")
@@ -106,23 +67,16 @@ def load_asset(
         builder.set_scene_idxs(scene_idxs)
     builder.initial_pose = initial_pose or sapien.Pose()
     art = builder.build(name=name or record.id)
-    apply_collision_policy(art, options)
+    for obj in art._objs:
+        apply_sim_options(obj, options)
     return art
 
 
-def apply_collision_policy(art: Articulation, options: LoadOptions) -> None:
-    """Set the object's collision groups (see the module docstring)."""
-    if not options.self_collision:
-        for link in art.links:
-            link.set_collision_group_bit(group=2, bit_idx=OBJECT_COLLISION_BIT, bit=1)
-
-
-def configure_ground(ground: Actor, options: LoadOptions | None = None) -> None:
-    """Let the ground ignore the robot and (by default) the object's links."""
-    options = options or default_load_options()
+def configure_ground(ground: Actor, options: SimOptions = DEFAULT_SIM_OPTIONS) -> None:
+    """Let the ground ignore the robot (and the object when its links ignore each other)."""
     ground.set_collision_group_bit(group=2, bit_idx=ROBOT_GROUND_COLLISION_BIT, bit=1)
-    if not options.collide_with_ground:
-        ground.set_collision_group_bit(group=2, bit_idx=OBJECT_COLLISION_BIT, bit=1)
+    if not options.self_collisions:
+        ground.set_collision_group_bit(group=2, bit_idx=OBJECT_IGNORE_BIT, bit=1)
 
 
 def robot_ignores_ground(robot: Articulation) -> None:
@@ -131,7 +85,7 @@ def robot_ignores_ground(robot: Articulation) -> None:
 
 
 def count_collision_shapes(art: Articulation) -> dict[str, int]:
-    """Collision shapes per link of the first sub-scene (SAPIEN drops shapes it cannot cook)."""
+    """Collision shapes per link in the first sub-scene (SAPIEN drops shapes it cannot cook)."""
     return {link.name: len(link._objs[0].collision_shapes) for link in art.links}
 
 

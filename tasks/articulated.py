@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 import sapien
 import torch
-
 from mani_skill.agents.robots import Panda
 from mani_skill.envs.sapien_env import BaseEnv
 from mani_skill.sensors.camera import CameraConfig
@@ -38,11 +37,11 @@ from mani_skill.utils import sapien_utils
 from mani_skill.utils.building.ground import build_ground
 from mani_skill.utils.structs import Articulation, Link, Pose
 from mani_skill.utils.structs.types import GPUMemoryConfig, SimConfig
+
+from asset_pipeline.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
 from sim_envs.catalog import AssetRecord, AssetSource, MovablePart, open_source
 from sim_envs.scene import (
-    LoadOptions,
     configure_ground,
-    default_load_options,
     handle_world_positions,
     load_asset,
     robot_ignores_ground,
@@ -92,7 +91,7 @@ class ArticulatedPartEnv(BaseEnv):
         object_pos_noise: float = 0.03,
         object_yaw_noise: float = 0.1,
         robot_pos_noise: float = 0.02,
-        load_options: LoadOptions | None = None,
+        sim_options: SimOptions = DEFAULT_SIM_OPTIONS,
         reconfiguration_freq: int | None = None,
         num_envs: int = 1,
         **kwargs: Any,
@@ -104,7 +103,7 @@ class ArticulatedPartEnv(BaseEnv):
         self.object_pos_noise = object_pos_noise
         self.object_yaw_noise = object_yaw_noise
         self.robot_pos_noise = robot_pos_noise
-        self.load_options = load_options or default_load_options()
+        self.sim_options = sim_options
         if reconfiguration_freq is None:
             reconfiguration_freq = 1 if num_envs == 1 else 0
         super().__init__(
@@ -147,7 +146,7 @@ class ArticulatedPartEnv(BaseEnv):
 
     def _load_scene(self, options: dict) -> None:
         self.ground = build_ground(self.scene)
-        configure_ground(self.ground, self.load_options)
+        configure_ground(self.ground, self.sim_options)
         rng = self._batched_episode_rng
         asset_idx = rng.randint(0, len(self.asset_records))
         part_pick = rng.randint(0, 2**31)
@@ -164,7 +163,7 @@ class ArticulatedPartEnv(BaseEnv):
                 if not parts:
                     raise ValueError(f"{rec.id}: no {self.joint_type} part named {self.target_part!r}")
             part = parts[int(part_pick[i]) % len(parts)]
-            art = load_asset(self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.load_options)
+            art = load_asset(self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options)
             self.remove_from_state_dict_registry(art)
             objects.append(art)
             link = art.links_map[part.name]

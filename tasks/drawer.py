@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from mani_skill.utils.registration import register_env
+
 from tasks.articulated import ArticulatedPartEnv
 
 

@@ -33,7 +33,7 @@ from sim_envs.catalog import AssetRecord, ListSource, open_source
 log = logging.getLogger(__name__)
 
 POS_STEP = 0.1  # metres per unit action (pd_ee_delta_pose of ManiSkill's Panda)
-ROT_STEP = 0.1  # radians per unit action
+ROT_STEP = -0.1  # radians per unit action: ManiSkill scales rotations by rot_lower (= -0.1)
 GRIPPER_OPEN, GRIPPER_CLOSED = 1.0, -1.0
 
 
@@ -43,7 +43,8 @@ class SolverConfig:
     grasp_depth: float = 0.005  # how far past the handle point the tcp goes (into the bar)
     prismatic_speed: float = 0.02  # metres of joint motion commanded per control step
     revolute_speed: float = 0.05  # radians per control step
-    overshoot: float = 0.08  # open (or close) this far past the goal fraction
+    overshoot: float = 0.06  # open (or close) this far past the goal fraction
+    stall_steps: int = 10
     max_steps: int = 300
     hold_steps: int = 15
 
@@ -136,8 +137,8 @@ class ScriptedSolver:
         dR = (Rb.T @ goal[:3, :3]) @ (Rb.T @ cur[:3, :3]).T
         rv = Rotation.from_matrix(dR).as_rotvec()
         rn = np.linalg.norm(rv)
-        if rn > ROT_STEP:
-            rv *= ROT_STEP / rn
+        if rn > abs(ROT_STEP):
+            rv *= abs(ROT_STEP) / rn
         euler = Rotation.from_rotvec(rv).as_euler("XYZ")
         return np.concatenate([dp / POS_STEP, euler / ROT_STEP, [gripper]]).astype(np.float32)
 
@@ -177,7 +178,7 @@ class ScriptedSolver:
             return T
 
         # 1-2. pre-grasp then approach
-        for phase, offset, tol, budget in (
+        for _phase, offset, tol, budget in (
             ("pregrasp", cfg.pregrasp_distance, 0.015, 60),
             ("approach", -cfg.grasp_depth, 0.006, 40),
         ):
@@ -200,10 +201,14 @@ class ScriptedSolver:
         speed = cfg.prismatic_speed if part.joint_type == "prismatic" else cfg.revolute_speed
         axis_obj = _np(u.joint_axis_world())[0].astype(float)
         phase = "move"
+        history: list[float] = []
         while step < cfg.max_steps - cfg.hold_steps:
             f = frac()
             if (f <= target) if closing else (f >= target):
                 break
+            history.append(f)
+            if len(history) > cfg.stall_steps and abs(f - history[-cfg.stall_steps - 1]) < 0.005:
+                break  # stalled (reach or joint limit, lost grip): settle and let success decide
             L = self._link()
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)

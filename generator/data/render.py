@@ -285,7 +285,7 @@ class ObjectRenderer:
                 direction, colour = view.lights[k]
                 light.set_color(np.asarray(colour, np.float32))
                 q = sapien.math.shortest_rotation([1, 0, 0], np.asarray(direction, np.float32))
-                light.set_pose(sapien.Pose([0, 0, 0], q))
+                light.set_entity_pose(sapien.Pose([0, 0, 0], q))
             else:
                 light.set_color([0.0, 0.0, 0.0])
         cam2world = look_at(np.asarray(view.eye, float), np.asarray(view.target, float))

@@ -77,13 +77,21 @@ def _looks(s: ParamSampler) -> tuple[Look, Look]:
     color = s.choice("body_color", APPLIANCE_COLORS)
     accent = s.choice("accent_color", ACCENT_COLORS)
     brushed = color in _STAINLESS and s.flag("brushed_texture", 0.5)
-    body = Look(color, accent, "brushed" if brushed else None, 2, s.integer("pattern_seed", 0, 2**31))
+    body = Look(
+        color, accent, "brushed" if brushed else None, 2, s.integer("pattern_seed", 0, 2**31)
+    )
     door = Look(_DARK_DOOR, accent) if s.flag("dark_door", 0.3) else body
     return body, door
 
 
 def _per_part(look: Look, rng: np.random.Generator) -> Look:
-    return Look(jitter(look.color, rng, 3), look.accent, look.texture, look.grain_axis, int(rng.integers(2**31)))
+    return Look(
+        jitter(look.color, rng, 3),
+        look.accent,
+        look.texture,
+        look.grain_axis,
+        int(rng.integers(2**31)),
+    )
 
 
 def _knobs(op: Opening, n: int, radius: float, protrude: float) -> list[Primitive]:
@@ -114,8 +122,16 @@ def _body(
     """A metal carcass (see ``grid_carcass``); returns (panels, openings, panel thickness)."""
     t = s.uniform("panel_t", 0.012, 0.025)
     prims, ops = grid_carcass(
-        width=width, depth=depth, top_z=top_z, t=t, back_t=t, col_fracs=col_fracs,
-        row_fracs=row_fracs, z0=z0, plinth=plinth, kick_setback=kick_setback,
+        width=width,
+        depth=depth,
+        top_z=top_z,
+        t=t,
+        back_t=t,
+        col_fracs=col_fracs,
+        row_fracs=row_fracs,
+        z0=z0,
+        plinth=plinth,
+        kick_setback=kick_setback,
     )
     return prims, ops, t
 
@@ -139,7 +155,9 @@ def microwave(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     body_look, door_look = _looks(s)
     cavity_w = width - control_w
     fracs = [control_w, cavity_w] if control_side == "left" else [cavity_w, control_w]
-    prims, ops, _ = _body(s, width, depth, height, col_fracs=fracs, row_fracs=[[1.0], [1.0]], z0=foot_h)
+    prims, ops, _ = _body(
+        s, width, depth, height, col_fracs=fracs, row_fracs=[[1.0], [1.0]], z0=foot_h
+    )
     control, cavity = (ops[0][0], ops[1][0]) if control_side == "left" else (ops[1][0], ops[0][0])
     base = PartSpec(semantic="base", material="metal", look=body_look)
     base.add(prims)
@@ -148,12 +166,25 @@ def microwave(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     knob_r = min(0.3 * control.width, s.uniform("knob_r", 0.014, 0.022))
     base.add(_knobs(control, n_knobs, knob_r, s.uniform("knob_protrude", 0.01, 0.02)), accent=True)
     foot_r = s.uniform("foot_r", 0.008, 0.014)
-    base.add(feet([-depth / 2 + 0.04, depth / 2 - 0.04], [-width / 2 + 0.05, width / 2 - 0.05], foot_h, foot_r))
+    base.add(
+        feet(
+            [-depth / 2 + 0.04, depth / 2 - 0.04],
+            [-width / 2 + 0.05, width / 2 - 0.05],
+            foot_h,
+            foot_r,
+        )
+    )
     handle = sample_handle(s, "handle", ("bar", "recessed"), length=(0.12, 0.22))
     lo, hi = overlay_front(cavity, td, gap, (gap / 2,) * 4)
     door = hinged_panel(
-        lo, hi, hinge, handle=handle, upper=s.uniform("door_upper", 1.4, 2.0),
-        look=door_look, material="plastic", grip_height=float((lo[2] + hi[2]) / 2),
+        lo,
+        hi,
+        hinge,
+        handle=handle,
+        upper=s.uniform("door_upper", 1.4, 2.0),
+        look=door_look,
+        material="plastic",
+        grip_height=float((lo[2] + hi[2]) / 2),
     )
     return base, [door]
 
@@ -184,27 +215,47 @@ def oven(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     base.add(prims)
     base.add([fill_front(col[0], 0.03)])
     knob_r = min(0.3 * col[0].height, s.uniform("knob_r", 0.015, 0.022))
-    base.add(_knobs(col[0], s.integer("n_knobs", 2, 5), knob_r, s.uniform("knob_protrude", 0.015, 0.025)), accent=True)
+    base.add(
+        _knobs(
+            col[0], s.integer("n_knobs", 2, 5), knob_r, s.uniform("knob_protrude", 0.015, 0.025)
+        ),
+        accent=True,
+    )
     burner_r = min(s.uniform("burner_r", 0.05, 0.09), min(width, depth) / 4 - 0.01)
     for x in (-depth / 4, depth / 4):
         for y in (-width / 4, width / 4):
-            base.add([cylinder([x, y, height + 0.004 - EPS / 2], burner_r, 0.008 + EPS, 2)], accent=True)
+            base.add(
+                [cylinder([x, y, height + 0.004 - EPS / 2], burner_r, 0.008 + EPS, 2)], accent=True
+            )
     rng = s.child_rng()
     handle = sample_handle(s, "door_handle", ("bar",), length=(0.35, 0.7), standoff=(0.035, 0.05))
     lo, hi = overlay_front(col[1], td, gap, (gap / 2,) * 4)
     movable = [
         hinged_panel(
-            lo, hi, "bottom", handle=handle, upper=s.uniform("door_upper", 1.4, 1.57),
-            look=_per_part(door_look, rng), material="glass",
+            lo,
+            hi,
+            "bottom",
+            handle=handle,
+            upper=s.uniform("door_upper", 1.4, 1.57),
+            look=_per_part(door_look, rng),
+            material="glass",
         )
     ]
     if has_drawer:
         dh = sample_handle(s, "drawer_handle", ("bar", "recessed"), length=(0.25, 0.5))
-        lo, hi = overlay_front(col[2], s.uniform("drawer_front_t", 0.015, 0.022), gap, (gap / 2,) * 4)
+        lo, hi = overlay_front(
+            col[2], s.uniform("drawer_front_t", 0.015, 0.022), gap, (gap / 2,) * 4
+        )
         movable.append(
             drawer(
-                col[2], lo, hi, clear=gap, drawer_style=sample_drawer_style(s, "drawer"), handle=dh,
-                look=_per_part(body_look, rng), material="metal",
+                col[2],
+                lo,
+                hi,
+                clear=gap,
+                drawer_style=sample_drawer_style(s, "drawer"),
+                handle=dh,
+                look=_per_part(body_look, rng),
+                material="metal",
             )
         )
     return base, movable
@@ -224,7 +275,13 @@ def dishwasher(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     td = s.uniform("door_t", 0.02, 0.025)
     body_look, door_look = _looks(s)
     prims, ops, t = _body(
-        s, width, depth, height, col_fracs=[1.0], row_fracs=[[1.0]], plinth=plinth,
+        s,
+        width,
+        depth,
+        height,
+        col_fracs=[1.0],
+        row_fracs=[[1.0]],
+        plinth=plinth,
         kick_setback=s.uniform("kick_setback", 0.04, 0.07),
     )
     op = ops[0][0]
@@ -235,11 +292,18 @@ def dishwasher(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         z = op.z0 + frac * op.height
         for y0, y1 in ((op.y0 - EPS, op.y0 + 0.015), (op.y1 - 0.015, op.y1 + EPS)):
             base.add([box([op.x_back - EPS, y0, z], [op.x_front - 0.03, y1, z + 0.01])])
-    handle = sample_handle(s, "handle", ("bar", "recessed"), length=(0.25, 0.45), standoff=(0.03, 0.045))
+    handle = sample_handle(
+        s, "handle", ("bar", "recessed"), length=(0.25, 0.45), standoff=(0.03, 0.045)
+    )
     lo, hi = overlay_front(op, td, gap, (gap / 2,) * 4)
     door = hinged_panel(
-        lo, hi, "bottom", handle=handle, upper=s.uniform("door_upper", 1.4, 1.57),
-        look=door_look, material="metal",
+        lo,
+        hi,
+        "bottom",
+        handle=handle,
+        upper=s.uniform("door_upper", 1.4, 1.57),
+        look=door_look,
+        material="metal",
     )
     return base, [door]
 
@@ -253,7 +317,9 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     width = s.split_param("width", sp["width"])
     height = s.split_param("height", sp["height"])
     depth = s.uniform("depth", 0.60, 0.75)
-    layouts = ["single", "top_freezer", "bottom_freezer"] + (["side_by_side"] if width >= 0.75 else [])
+    layouts = ["single", "top_freezer", "bottom_freezer"] + (
+        ["side_by_side"] if width >= 0.75 else []
+    )
     layout = s.choice("layout", layouts)
     plinth = s.uniform("plinth_h", 0.04, 0.10)
     gap = s.uniform("gap", 0.001, 0.003)
@@ -274,7 +340,13 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         col_fracs, row_fracs = [1.0], [[1.0]]
     s.params["door_t"] = td
     prims, ops, t = _body(
-        s, width, depth, height, col_fracs=col_fracs, row_fracs=row_fracs, plinth=plinth,
+        s,
+        width,
+        depth,
+        height,
+        col_fracs=col_fracs,
+        row_fracs=row_fracs,
+        plinth=plinth,
         kick_setback=0.04,
     )
     base = PartSpec(semantic="base", material="metal", look=body_look)
@@ -284,8 +356,17 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
             n_shelves = int(op.height // 0.35)
             for k in range(1, n_shelves + 1):
                 z = op.z0 + k * op.height / (n_shelves + 1)
-                base.add([box([op.x_back - EPS, op.y0 - EPS, z - 0.004], [op.x_front - 0.05, op.y1 + EPS, z + 0.004])])
-    handle = sample_handle(s, "handle", ("bar", "recessed"), length=(0.25, 0.6), standoff=(0.035, 0.055))
+                base.add(
+                    [
+                        box(
+                            [op.x_back - EPS, op.y0 - EPS, z - 0.004],
+                            [op.x_front - 0.05, op.y1 + EPS, z + 0.004],
+                        )
+                    ]
+                )
+    handle = sample_handle(
+        s, "handle", ("bar", "recessed"), length=(0.25, 0.6), standoff=(0.035, 0.055)
+    )
     upper = s.uniform("door_upper", 1.6, 2.0)
     rng = s.child_rng()
     doors = []
@@ -329,13 +410,24 @@ def washing_machine(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
 
 
 def _front_loader(
-    s: ParamSampler, width: float, height: float, depth: float, gap: float, body_look: Look, door_look: Look
+    s: ParamSampler,
+    width: float,
+    height: float,
+    depth: float,
+    gap: float,
+    body_look: Look,
+    door_look: Look,
 ) -> tuple[PartSpec, list[PartSpec]]:
     control_h = s.uniform("control_h", 0.10, 0.14)
     plinth = s.uniform("plinth_h", 0.0, 0.06)
     plinth = plinth if plinth > 0.02 else 0.0
     prims, ops, t = _body(
-        s, width, depth, height, col_fracs=[1.0], row_fracs=[[control_h, height - control_h]],
+        s,
+        width,
+        depth,
+        height,
+        col_fracs=[1.0],
+        row_fracs=[[control_h, height - control_h]],
         plinth=plinth,
     )
     control, main = ops[0]
@@ -343,9 +435,14 @@ def _front_loader(
     base.add(prims)
     base.add([fill_front(control, 0.03)])
     knob_r = min(0.35 * control.height, s.uniform("knob_r", 0.025, 0.035))
-    knob_y = main.y0 + 0.25 * main.width if s.flag("knob_left", 0.5) else main.y1 - 0.25 * main.width
+    knob_y = (
+        main.y0 + 0.25 * main.width if s.flag("knob_left", 0.5) else main.y1 - 0.25 * main.width
+    )
     knob_x = control.x_front + 0.01
-    base.add([cylinder([knob_x, knob_y, (control.z0 + control.z1) / 2], knob_r, 0.02 + EPS, 0)], accent=True)
+    base.add(
+        [cylinder([knob_x, knob_y, (control.z0 + control.z1) / 2], knob_r, 0.02 + EPS, 0)],
+        accent=True,
+    )
     # front panel with a square drum opening
     hole = min(main.width, main.height) * s.uniform("hole_frac", 0.55, 0.68)
     zc = (main.z0 + main.z1) / 2
@@ -359,25 +456,43 @@ def _front_loader(
     ):
         base.add([box(lo, hi)])
     # the round porthole door, in front of the body and below the control strip
-    r = min(hole * s.uniform("door_r_frac", 0.72, 0.80), main.cover[3] - t / 2 - zc - 0.01, width / 2 - 0.01)
+    r = min(
+        hole * s.uniform("door_r_frac", 0.72, 0.80),
+        main.cover[3] - t / 2 - zc - 0.01,
+        width / 2 - 0.01,
+    )
     td = s.uniform("door_t", 0.03, 0.045)
     bulge = s.uniform("bulge_t", 0.01, 0.02)
     x0 = xf + gap
     ring = cylinder([x0 + td / 2, 0.0, zc], r, td, 0)
     glass = cylinder([x0 + td + bulge / 2 - EPS / 2, 0.0, zc], 0.68 * r, bulge + EPS, 0)
     style = sample_handle(s, "handle", ("bar",), length=(0.08, 0.14))
-    style = HandleStyle("bar", min(style.length, 0.9 * r), style.radius, style.standoff, 0.0, 0.0, 0.25 * r)
+    style = HandleStyle(
+        "bar", min(style.length, 0.9 * r), style.radius, style.standoff, 0.0, 0.0, 0.25 * r
+    )
     lo, hi = np.array([x0, -r, zc - r]), np.array([x0 + td, r, zc + r])
     door = hinged_panel(
-        lo, hi, s.choice("hinge", ("left", "right")), handle=style,
-        upper=s.uniform("door_upper", 1.4, 2.0), look=door_look, material="plastic",
-        grip_height=zc, body=[ring, glass],
+        lo,
+        hi,
+        s.choice("hinge", ("left", "right")),
+        handle=style,
+        upper=s.uniform("door_upper", 1.4, 2.0),
+        look=door_look,
+        material="plastic",
+        grip_height=zc,
+        body=[ring, glass],
     )
     return base, [door]
 
 
 def _top_loader(
-    s: ParamSampler, width: float, height: float, depth: float, gap: float, body_look: Look, door_look: Look
+    s: ParamSampler,
+    width: float,
+    height: float,
+    depth: float,
+    gap: float,
+    body_look: Look,
+    door_look: Look,
 ) -> tuple[PartSpec, list[PartSpec]]:
     t = s.uniform("panel_t", 0.012, 0.02)
     console_d = s.uniform("console_d", 0.08, 0.12)
@@ -408,14 +523,32 @@ def _top_loader(
     )
     knob_r = s.uniform("knob_r", 0.02, min(0.035, console_d / 2 - 0.01))
     knob_y = s.uniform("knob_y", -0.3, 0.3) * width
-    base.add([cylinder([xb + console_d / 2, knob_y, height + console_h + 0.01 - EPS / 2], knob_r, 0.02 + EPS, 2)], accent=True)
+    base.add(
+        [
+            cylinder(
+                [xb + console_d / 2, knob_y, height + console_h + 0.01 - EPS / 2],
+                knob_r,
+                0.02 + EPS,
+                2,
+            )
+        ],
+        accent=True,
+    )
     tl = s.uniform("lid_t", 0.015, 0.025)
     side = s.uniform("lid_side_margin", 0.0, 0.01)
     lo = np.array([x_console + gap, yl + side, height + gap])
     hi = np.array([xf, yr - side, height + gap + tl])
-    handle = sample_handle(s, "handle", ("recessed", "bar"), length=(0.10, 0.25), standoff=(0.02, 0.03))
+    handle = sample_handle(
+        s, "handle", ("recessed", "bar"), length=(0.10, 0.25), standoff=(0.02, 0.03)
+    )
     lid = hinged_panel(
-        lo, hi, "back", handle=handle, upper=s.uniform("lid_upper", 1.3, 1.55),
-        look=door_look, material="glass", semantic="lid",
+        lo,
+        hi,
+        "back",
+        handle=handle,
+        upper=s.uniform("lid_upper", 1.3, 1.55),
+        look=door_look,
+        material="glass",
+        semantic="lid",
     )
     return base, [lid]

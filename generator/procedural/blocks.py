@@ -151,9 +151,7 @@ def fill_front(op: Opening, depth: float) -> Primitive:
     )
 
 
-def feet(
-    xs: Sequence[float], ys: Sequence[float], height: float, radius: float
-) -> list[Primitive]:
+def feet(xs: Sequence[float], ys: Sequence[float], height: float, radius: float) -> list[Primitive]:
     """Cylindrical feet (axis z) on the floor at every (x, y) of ``xs`` x ``ys``, reaching
     ``EPS`` into the body above."""
     h = height + EPS
@@ -450,9 +448,7 @@ def hinged_panel(
     spec.add(trims, accent=True)
     for prim, is_accent in extra:
         spec.add([prim], accent=is_accent)
-    spec.joint = Joint(
-        type="revolute", origin=origin, axis=axis, lower=0.0, upper=float(upper)
-    )
+    spec.joint = Joint(type="revolute", origin=origin, axis=axis, lower=0.0, upper=float(upper))
     spec.handle = grip_handle
     spec.order = (float(c[2]), float(c[1]))
     return spec

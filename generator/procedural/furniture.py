@@ -60,7 +60,13 @@ def _wood_looks(s: ParamSampler) -> tuple[Look, Look]:
     accent = s.choice("accent_color", ACCENT_COLORS)
     textured = s.flag("wood_texture", 0.6)
     if textured:
-        body = Look(s.choice("body_color", WOOD_COLORS), accent, "wood", 2, s.integer("pattern_seed", 0, 2**31))
+        body = Look(
+            s.choice("body_color", WOOD_COLORS),
+            accent,
+            "wood",
+            2,
+            s.integer("pattern_seed", 0, 2**31),
+        )
     else:
         body = Look(s.choice("body_color", PAINT_COLORS + WOOD_COLORS), accent)
     if s.flag("contrast_fronts", 0.3):
@@ -72,7 +78,13 @@ def _wood_looks(s: ParamSampler) -> tuple[Look, Look]:
 
 def _part_look(look: Look, rng: np.random.Generator) -> Look:
     """A per-part variation of ``look`` (slight colour jitter, own grain phase)."""
-    return Look(jitter(look.color, rng), look.accent, look.texture, look.grain_axis, int(rng.integers(2**31)))
+    return Look(
+        jitter(look.color, rng),
+        look.accent,
+        look.texture,
+        look.grain_axis,
+        int(rng.integers(2**31)),
+    )
 
 
 # --------------------------------------------------------------------------- cabinet
@@ -189,8 +201,14 @@ def cabinet(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
                 lo, hi = inset_front(op, tf, (gap,) * 4)
                 movable.append(
                     drawer(
-                        op, lo, hi, clear=gap, drawer_style=dstyle, handle=handle,
-                        look=_part_look(front_look, rng), material="wood",
+                        op,
+                        lo,
+                        hi,
+                        clear=gap,
+                        drawer_style=dstyle,
+                        handle=handle,
+                        look=_part_look(front_look, rng),
+                        material="wood",
                     )
                 )
                 continue
@@ -234,14 +252,22 @@ def _door_cell(
         gm = free_edge_gap(gap, tf, half)
         ym = (op.y0 + op.y1) / 2
         out = []
-        for hinge, y0, y1 in (("left", op.y0 + gap, ym - gm / 2), ("right", ym + gm / 2, op.y1 - gap)):
+        for hinge, y0, y1 in (
+            ("left", op.y0 + gap, ym - gm / 2),
+            ("right", ym + gm / 2, op.y1 - gap),
+        ):
             at_outer = (hinge == "left" and c == 0) or (hinge == "right" and c == columns - 1)
             lo = np.array([op.x_front - tf, y0, op.z0 + gap])
             hi = np.array([op.x_front, y1, op.z1 - gap])
             out.append(
                 hinged_panel(
-                    lo, hi, hinge, handle=handle, upper=outer_upper if at_outer else inner_upper,
-                    look=_part_look(front_look, rng), material="wood",
+                    lo,
+                    hi,
+                    hinge,
+                    handle=handle,
+                    upper=outer_upper if at_outer else inner_upper,
+                    look=_part_look(front_look, rng),
+                    material="wood",
                 )
             )
         return out
@@ -252,8 +278,13 @@ def _door_cell(
         lo, hi = inset_front(op, tf, gaps)
         return [
             hinged_panel(
-                lo, hi, hinge, handle=handle, upper=min(outer_upper, 1.57),
-                look=_part_look(front_look, rng), material="wood",
+                lo,
+                hi,
+                hinge,
+                handle=handle,
+                upper=min(outer_upper, 1.57),
+                look=_part_look(front_look, rng),
+                material="wood",
             )
         ]
     if columns == 1 or 0 < c < columns - 1:
@@ -266,8 +297,13 @@ def _door_cell(
     lo, hi = inset_front(op, tf, gaps)
     return [
         hinged_panel(
-            lo, hi, hinge, handle=handle, upper=outer_upper if at_outer else inner_upper,
-            look=_part_look(front_look, rng), material="wood",
+            lo,
+            hi,
+            hinge,
+            handle=handle,
+            upper=outer_upper if at_outer else inner_upper,
+            look=_part_look(front_look, rng),
+            material="wood",
         )
     ]
 
@@ -322,15 +358,26 @@ def desk(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         housing_w = min(available, k * s.uniform("apron_drawer_w", 0.40, 0.60))
         housing_h = s.uniform("apron_h", 0.12, 0.18)
         prims, ops = grid_carcass(
-            width=housing_w, depth=body_d, top_z=under + EPS, t=t, back_t=back_t,
-            col_fracs=[1.0] * k, row_fracs=[[1.0]] * k, z0=under - housing_h, cx=cx,
+            width=housing_w,
+            depth=body_d,
+            top_z=under + EPS,
+            t=t,
+            back_t=back_t,
+            col_fracs=[1.0] * k,
+            row_fracs=[[1.0]] * k,
+            z0=under - housing_h,
+            cx=cx,
         )
         base.add(prims)
         openings = [col[0] for col in ops]
         leg_pair(-width / 2 + ov_s)
         leg_pair(width / 2 - ov_s - leg)
     else:
-        sides = ("left", "right") if len(counts) == 2 else (s.choice("pedestal_side", ("left", "right")),)
+        sides = (
+            ("left", "right")
+            if len(counts) == 2
+            else (s.choice("pedestal_side", ("left", "right")),)
+        )
         plinth = s.uniform("plinth_h", 0.0, 0.06)
         plinth = plinth if plinth > 0.02 else 0.0
         ped_y: dict[str, tuple[float, float]] = {}
@@ -340,9 +387,16 @@ def desk(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
             ped_y[side] = (cy - pw / 2, cy + pw / 2)
             grad = s.uniform(f"pedestal_{side}_grading", 0.0, 0.5)
             prims, ops = grid_carcass(
-                width=pw, depth=body_d, top_z=under + EPS, t=t, back_t=back_t,
-                col_fracs=[1.0], row_fracs=[[1.0 + grad * i for i in range(k)]],
-                plinth=plinth, cx=cx, cy=cy,
+                width=pw,
+                depth=body_d,
+                top_z=under + EPS,
+                t=t,
+                back_t=back_t,
+                col_fracs=[1.0],
+                row_fracs=[[1.0 + grad * i for i in range(k)]],
+                plinth=plinth,
+                cx=cx,
+                cy=cy,
             )
             base.add(prims)
             openings.extend(ops[0])
@@ -364,8 +418,14 @@ def desk(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         lo, hi = inset_front(op, tf, (gap,) * 4)
         movable.append(
             drawer(
-                op, lo, hi, clear=gap, drawer_style=dstyle, handle=handle,
-                look=_part_look(front_look, rng), material="wood",
+                op,
+                lo,
+                hi,
+                clear=gap,
+                drawer_style=dstyle,
+                handle=handle,
+                look=_part_look(front_look, rng),
+                material="wood",
             )
         )
     return base, movable

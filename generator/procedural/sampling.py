@@ -88,7 +88,7 @@ class ParamSampler:
     def _record(self, name: str, value: Any) -> Any:
         if name in self.params:
             raise KeyError(f"parameter {name!r} drawn twice")
-        self.params[name] = value
+        self.params[name] = list(value) if isinstance(value, tuple) else value  # JSON-shaped
         return value
 
     def uniform(self, name: str, lo: float, hi: float) -> float:

@@ -1,0 +1,384 @@
+"""PPO (stable-baselines3) on the drawer / door tasks, CleanRL-style: read it top to bottom.
+
+CPU (default): ``num_envs`` single-env ManiSkill processes in a gymnasium
+``AsyncVectorEnv`` (one physx_cpu env per process, each reset loads a new asset),
+adapted to SB3's VecEnv API by :func:`sb3_vec_env`. GPU: one ManiSkill env
+with ``num_envs`` sub-scenes on ``physx_cuda`` behind ManiSkill's SB3 wrapper.
+
+Logs (TensorBoard and CSV in ``out_dir``): SB3's rollout/ep_rew_mean and
+rollout/success_rate, and every ``eval_every`` steps eval/success_rate and
+eval/return on held-out assets (also ``eval.csv`` with wall-clock seconds).
+The policy is saved as ``out_dir/policy.zip``.
+
+    python -m tasks.train --assets out/train --eval-assets out/test --total-timesteps 200000
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Args:
+    env_id: str = "OpenDrawer-v0"
+    assets: str = "out"
+    """folder of built assets or catalog file to train on"""
+    eval_assets: str | None = None
+    """held-out assets for evaluation (default: the training assets)"""
+    category: str | None = None
+    num_envs: int = 2
+    total_timesteps: int = 200_000
+    sim_backend: str = "physx_cpu"
+    """physx_cpu (vector of processes) or physx_cuda (one batched GPU env)"""
+    control_mode: str = "pd_joint_delta_pos"
+    reward_mode: str = "normalized_dense"
+    max_episode_steps: int = 100
+    learning_rate: float = 3e-4
+    n_steps: int = 200
+    """rollout length per env"""
+    batch_size: int = 200
+    n_epochs: int = 8
+    gamma: float = 0.9
+    gae_lambda: float = 0.95
+    ent_coef: float = 0.0
+    net_arch: list[int] = field(default_factory=lambda: [256, 256])
+    seed: int = 0
+    out_dir: str = "runs/ppo"
+    eval_every: int = 20_000
+    eval_episodes: int = 10
+    device: str = "cpu"
+
+
+# --------------------------------------------------------------------------- envs
+
+
+class FlattenStateObs(gym.ObservationWrapper):
+    """Observations as one float32 numpy vector (state obs are already flat; dicts get concatenated)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        obs, _ = env.reset(seed=0)
+        n = self.observation(obs).shape[0]
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (n,), np.float32)
+
+    def observation(self, obs: Any) -> np.ndarray:
+        if isinstance(obs, dict):
+            parts = [self.observation(obs[k]) for k in sorted(obs)]
+            return np.concatenate(parts).astype(np.float32) if parts else np.zeros(0, np.float32)
+        return np.asarray(obs, dtype=np.float32).reshape(-1)
+
+
+class SuccessInfo(gym.Wrapper):
+    """Adds SB3's ``is_success`` and the episode statistics ``episode={r, l, t}`` to infos."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._ret, self._len, self._t0 = 0.0, 0, time.time()
+
+    def reset(self, **kw: Any) -> tuple[Any, dict]:
+        self._ret, self._len = 0.0, 0
+        return self.env.reset(**kw)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        obs, r, term, trunc, info = self.env.step(action)
+        self._ret += float(r)
+        self._len += 1
+        if term or trunc:
+            info["is_success"] = bool(info.get("success", False))
+            info["episode"] = {"r": self._ret, "l": self._len, "t": time.time() - self._t0}
+        return obs, float(r), bool(term), bool(trunc), info
+
+
+def make_cpu_env(
+    env_id: str, assets: str, seed: int = 0, render_mode: str | None = None, **kwargs: Any
+) -> gym.Env:
+    """One ManiSkill env on physx_cpu as a plain gymnasium env with numpy observations."""
+    from mani_skill.utils.wrappers import CPUGymWrapper
+
+    import tasks  # noqa: F401  (registers the envs)
+
+    kwargs.setdefault("obs_mode", "state")
+    kwargs.setdefault("render_backend", "none" if render_mode is None and kwargs["obs_mode"] == "state" else "cpu")
+    env = gym.make(env_id, assets=assets, sim_backend="physx_cpu", render_mode=render_mode, **kwargs)
+    env = CPUGymWrapper(env)
+    env = SuccessInfo(FlattenStateObs(env))
+    env.action_space.seed(seed)
+    return env
+
+
+def _env_fn(args: Args, rank: int):
+    def thunk() -> gym.Env:
+        return make_cpu_env(
+            args.env_id, args.assets, seed=args.seed + rank, category=args.category,
+            control_mode=args.control_mode, reward_mode=args.reward_mode,
+            max_episode_steps=args.max_episode_steps,
+        )
+
+    return thunk
+
+
+def sb3_vec_env(venv: gym.vector.VectorEnv):
+    """Wrap a gymnasium vector env (autoreset_mode=SAME_STEP) as an SB3 VecEnv."""
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+    class _Adapter(VecEnv):
+        def __init__(self) -> None:
+            self.venv = venv
+            super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+            self._actions: np.ndarray | None = None
+            self._seed: int | None = None
+
+        def reset(self) -> np.ndarray:
+            obs, _ = self.venv.reset(seed=self._seed)
+            self._seed = None
+            return obs
+
+        def step_async(self, actions: np.ndarray) -> None:
+            self._actions = actions
+
+        def step_wait(self):
+            obs, rew, term, trunc, infos = self.venv.step(self._actions)
+            done = term | trunc
+            out = []
+            for i in range(self.num_envs):
+                info: dict[str, Any] = {}
+                if done[i] and "final_info" in infos:
+                    info.update(_index_info(infos["final_info"], i))
+                    info["terminal_observation"] = infos["final_obs"][i]
+                    info["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
+                out.append(info)
+            return obs, rew.astype(np.float32), done, out
+
+        def close(self) -> None:
+            self.venv.close()
+
+        def seed(self, seed: int | None = None):
+            self._seed = seed
+            return [seed] * self.num_envs
+
+        def get_attr(self, attr_name, indices=None):
+            return [getattr(self.venv, attr_name)] * len(self._get_indices(indices))
+
+        def set_attr(self, attr_name, value, indices=None) -> None:
+            setattr(self.venv, attr_name, value)
+
+        def env_method(self, method_name, *args, indices=None, **kwargs):
+            return [None] * len(self._get_indices(indices))
+
+        def env_is_wrapped(self, wrapper_class, indices=None):
+            return [False] * len(self._get_indices(indices))
+
+    return _Adapter()
+
+
+def _index_info(infos: dict, i: int) -> dict[str, Any]:
+    out = {}
+    for k, v in infos.items():
+        if k.startswith("_"):
+            continue
+        mask = infos.get("_" + k)
+        if mask is not None and not mask[i]:
+            continue
+        out[k] = _index_info(v, i) if isinstance(v, dict) else v[i]
+    return out
+
+
+def make_train_env(args: Args):
+    """The SB3 VecEnv for ``args`` (CPU process vector or GPU batched env)."""
+    if args.sim_backend == "physx_cpu":
+        fns = [_env_fn(args, i) for i in range(args.num_envs)]
+        mode = gym.vector.AutoresetMode.SAME_STEP
+        if args.num_envs == 1:
+            venv = gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
+        else:
+            venv = gym.vector.AsyncVectorEnv(fns, autoreset_mode=mode, context="spawn")
+        return sb3_vec_env(venv)
+    # GPU: all envs in one process; different assets per sub-scene (untested here: no GPU)
+    from mani_skill.vector.wrappers.sb3 import ManiSkillSB3VectorEnv
+
+    import tasks  # noqa: F401
+
+    env = gym.make(
+        args.env_id, assets=args.assets, category=args.category, num_envs=args.num_envs,
+        sim_backend=args.sim_backend, obs_mode="state", control_mode=args.control_mode,
+        reward_mode=args.reward_mode, max_episode_steps=args.max_episode_steps,
+    )
+    return ManiSkillSB3VectorEnv(env)
+
+
+# --------------------------------------------------------------------------- evaluation
+
+
+def evaluate(
+    policy: Any,
+    env_id: str,
+    assets: str,
+    episodes: int = 10,
+    seed: int = 10_000,
+    video_dir: str | Path | None = None,
+    deterministic: bool = True,
+    **env_kwargs: Any,
+) -> dict[str, Any]:
+    """Success rate and mean return of ``policy`` (an SB3 model or a path to one) on ``assets``.
+
+    Episode k is seeded ``seed + k`` (each reset loads an asset sampled from ``assets``).
+    With ``video_dir`` each episode is written as mp4 (imageio) or, failing that, PNG frames.
+    """
+    if isinstance(policy, (str, Path)):
+        from stable_baselines3 import PPO
+
+        policy = PPO.load(str(policy), device="cpu")
+    env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
+    successes, returns, ids = [], [], []
+    try:
+        for k in range(episodes):
+            obs, _ = env.reset(seed=seed + k)
+            frames = [env.render()] if video_dir else []
+            done, ret, info = False, 0.0, {}
+            while not done:
+                action, _ = policy.predict(obs, deterministic=deterministic)
+                obs, r, term, trunc, info = env.step(action)
+                ret += r
+                done = term or trunc
+                if video_dir:
+                    frames.append(env.render())
+            successes.append(bool(info.get("success", False)))
+            returns.append(ret)
+            ids.append(env.unwrapped.episode_assets[0].id)
+            if video_dir:
+                write_video(frames, Path(video_dir) / f"episode_{k:03d}_{ids[-1]}")
+    finally:
+        env.close()
+    return {
+        "success_rate": float(np.mean(successes)) if successes else 0.0,
+        "mean_return": float(np.mean(returns)) if returns else 0.0,
+        "episodes": [{"asset": a, "success": s, "return": float(r)} for a, s, r in zip(ids, successes, returns, strict=True)],
+    }
+
+
+def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
+    """Write rgb frames as ``stem.mp4`` (imageio + ffmpeg), else ``stem.gif``, else PNGs."""
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    imgs = [np.asarray(f).reshape(np.asarray(f).shape[-3:]).astype(np.uint8) for f in frames]
+    try:
+        import imageio.v2 as imageio
+
+        try:
+            path = stem.with_suffix(".mp4")
+            imageio.mimsave(path, imgs, fps=fps)
+        except Exception:  # no ffmpeg backend
+            path = stem.with_suffix(".gif")
+            imageio.mimsave(path, imgs, duration=1 / fps)
+        return path
+    except ImportError:
+        from PIL import Image
+
+        stem.mkdir(parents=True, exist_ok=True)
+        for i, im in enumerate(imgs):
+            Image.fromarray(im).save(stem / f"{i:04d}.png")
+        return stem
+
+
+# --------------------------------------------------------------------------- training
+
+
+def train(args: Args) -> dict[str, Any]:
+    """Train PPO per ``args``; return paths and the last evaluation."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import configure
+
+    out = Path(args.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    eval_assets = args.eval_assets or args.assets
+    venv = make_train_env(args)
+    model = PPO(
+        "MlpPolicy", venv, learning_rate=args.learning_rate, n_steps=args.n_steps,
+        batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma,
+        gae_lambda=args.gae_lambda, ent_coef=args.ent_coef, seed=args.seed, device=args.device,
+        policy_kwargs={"net_arch": list(args.net_arch)}, verbose=0,
+    )
+    model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
+    eval_csv = out / "eval.csv"
+    t0 = time.time()
+    history: list[dict[str, Any]] = []
+
+    class PeriodicEval(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.next_eval = 0
+
+        def run_eval(self) -> None:
+            res = evaluate(self.model, args.env_id, eval_assets, args.eval_episodes,
+                           category=args.category, control_mode=args.control_mode,
+                           max_episode_steps=args.max_episode_steps)
+            row = {"timesteps": self.num_timesteps, "wall_seconds": round(time.time() - t0, 2),
+                   "success_rate": res["success_rate"], "mean_return": res["mean_return"]}
+            history.append(row)
+            self.logger.record("eval/success_rate", res["success_rate"])
+            self.logger.record("eval/return", res["mean_return"])
+            new = not eval_csv.exists()
+            with open(eval_csv, "a", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(row))
+                if new:
+                    w.writeheader()
+                w.writerow(row)
+            log.info("eval at %d steps: %s", self.num_timesteps, row)
+
+        def _on_step(self) -> bool:
+            if args.eval_every > 0 and self.num_timesteps >= self.next_eval:
+                self.run_eval()
+                self.next_eval = self.num_timesteps + args.eval_every
+            return True
+
+        def _on_training_end(self) -> None:
+            if not history or history[-1]["timesteps"] != self.num_timesteps:
+                self.run_eval()
+
+    if eval_csv.exists():
+        eval_csv.unlink()
+    try:
+        model.learn(total_timesteps=args.total_timesteps, callback=PeriodicEval())
+        model.save(out / "policy")
+    finally:
+        venv.close()
+    (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
+    return {"policy": str(out / "policy.zip"), "progress_csv": str(out / "progress.csv"),
+            "eval_csv": str(eval_csv), "last_eval": history[-1] if history else None,
+            "seconds": time.time() - t0}
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    """Args from command-line flags (``--total-timesteps 1000``); defaults from :class:`Args`."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description="PPO on the drawer / door tasks")
+    for name, value in asdict(Args()).items():
+        flag = "--" + name.replace("_", "-")
+        if isinstance(value, list):
+            parser.add_argument(flag, type=int, nargs="+", default=value)
+        elif value is None:
+            parser.add_argument(flag, type=str, default=None)
+        else:
+            parser.add_argument(flag, type=type(value), default=value)
+    return Args(**vars(parser.parse_args(argv)))
+
+
+def main(argv: list[str] | None = None) -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    print(json.dumps(train(parse_args(argv)), indent=2))
+
+
+if __name__ == "__main__":
+    main()
