@@ -86,7 +86,7 @@ def robot_ignores_ground(robot: Articulation) -> None:
 
 def count_collision_shapes(art: Articulation) -> dict[str, int]:
     """Collision shapes per link in the first sub-scene (SAPIEN drops shapes it cannot cook)."""
-    return {link.name: len(link._objs[0].collision_shapes) for link in art.links}
+    return {link.name: len(link.collision_shapes) for link in art._objs[0].links}
 
 
 def yaw_quat(yaw: torch.Tensor) -> torch.Tensor:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import sapien
 import torch
+from gymnasium.utils import seeding as gym_seeding
 from mani_skill.agents.robots import Panda
 from mani_skill.envs.sapien_env import BaseEnv
 from mani_skill.sensors.camera import CameraConfig
@@ -192,6 +193,13 @@ class ArticulatedPartEnv(BaseEnv):
         self.object_yaw = torch.zeros(self.num_envs, device=self.device)
 
     # ------------------------------------------------------------------ episodes
+    def reset(self, seed: int | list[int] | None = None, options: dict | None = None):
+        """ManiSkill's reset; also seeds gymnasium's ``np_random`` (the env checker asks for it)."""
+        if seed is not None:
+            first = int(seed) if np.isscalar(seed) else int(list(seed)[0])
+            self._np_random, self._np_random_seed = gym_seeding.np_random(first)
+        return super().reset(seed=seed, options=options)
+
     def _initialize_episode(self, env_idx: torch.Tensor, options: dict) -> None:
         with torch.device(self.device):
             b = len(env_idx)

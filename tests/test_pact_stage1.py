@@ -282,7 +282,8 @@ def _shapes(R: int) -> torch.Tensor:
     slab = (z > 0.2) & (z < 0.4) & (x.abs() < 0.4)
     ring = ((x**2 + y**2).sqrt() - 0.25).abs() < 0.08
     ring &= z.abs() < 0.1
-    return torch.stack([sphere, box, slab, ring]).float()  # (4, R, R, R)
+    empty = torch.zeros_like(sphere)  # unused part slots are all-empty grids
+    return torch.stack([sphere, box, slab, ring, empty]).float()  # (5, R, R, R)
 
 
 def test_vae_shapes_and_overfits_a_few_grids():
@@ -290,9 +291,9 @@ def test_vae_shapes_and_overfits_a_few_grids():
     vae = build("ss_vae", TINY_VAE)
     occ = _shapes(16)
     z, mean, logvar = vae.encode(occ[:, None])
-    assert z.shape == mean.shape == logvar.shape == (4, 2, 4, 4, 4)
-    assert vae.decode(z).shape == (4, 1, 16, 16, 16)
-    parts = occ.view(2, 2, 16, 16, 16)  # (B, K, R, R, R)
+    assert z.shape == mean.shape == logvar.shape == (5, 2, 4, 4, 4)
+    assert vae.decode(z).shape == (5, 1, 16, 16, 16)
+    parts = occ[:4].view(2, 2, 16, 16, 16)  # (B, K, R, R, R)
     assert vae.encode_parts(parts).shape == (2, 2, 2, 4, 4, 4)
     assert vae.decode_parts(vae.encode_parts(parts)).shape == (2, 2, 16, 16, 16)
     assert vae.empty_latent().shape == (2, 4, 4, 4)

@@ -252,7 +252,7 @@ def test_appearance_colours_and_textures() -> None:
 
 def test_bundle_round_trip(tmp_path) -> None:
     for category in CATEGORIES:
-        obj = _obj(category, 2, "train")
+        obj = _obj(category, 2, "train")  # cabinet 2 is wood-textured
         back = load_bundle(save_bundle(obj, tmp_path / object_id(category, 2)))
         assert [p.name for p in back.parts] == [p.name for p in obj.parts]
         assert back.provenance == obj.provenance
@@ -260,6 +260,11 @@ def test_bundle_round_trip(tmp_path) -> None:
             assert np.array_equal(a.mesh.vertices, b.mesh.vertices), a.name
             assert np.array_equal(a.mesh.faces, b.mesh.faces), a.name
             assert b.mesh.is_watertight
+            va, vb = a.mesh.visual, b.mesh.visual
+            if isinstance(va, trimesh.visual.TextureVisuals):
+                assert np.array_equal(va.uv, vb.uv), a.name
+            else:
+                assert np.array_equal(va.vertex_colors, vb.vertex_colors), a.name
             assert (a.joint is None) == (b.joint is None)
             if a.joint is not None:
                 assert a.joint.to_json() == b.joint.to_json()
