@@ -135,6 +135,19 @@ def link_frame_mesh(mesh: trimesh.Trimesh, origin: np.ndarray) -> trimesh.Trimes
     return out
 
 
+def textured_for_render(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` with its vertex colours baked into a palette texture.
+
+    SAPIEN's renderer ignores glTF vertex colours (COLOR_0) but draws base-colour
+    textures, so coloured visuals are written textured; textured meshes pass through.
+    """
+    if mesh.visual.kind not in ("vertex", "face"):
+        return mesh
+    out = mesh.copy()
+    out.visual = mesh.visual.to_texture()
+    return out
+
+
 def obj_text(mesh: trimesh.Trimesh) -> str:
     """Wavefront OBJ of the geometry only (positions and faces; MuJoCo and PhysX read it)."""
     return trimesh.exchange.obj.export_obj(
@@ -260,7 +273,7 @@ def build_asset(
         origin = link_origin(built, p.name)
         vis = link_frame_mesh(p.mesh, origin)
         for path, data in (
-            (root / "visual" / f"{p.name}.glb", mesh_to_glb(vis)),
+            (root / "visual" / f"{p.name}.glb", mesh_to_glb(textured_for_render(vis))),
             (root / "visual" / f"{p.name}.obj", obj_text(vis)),
         ):
             _write(path, data)

@@ -147,6 +147,50 @@ def build(
         raise typer.Exit(1)
 
 
+@app.command("validate")
+def validate_cmd(
+    paths: list[Path] = typer.Argument(..., help="Built asset folders, or folders of them."),
+    repair: bool = typer.Option(True, "--repair/--no-repair", help="Repair what can be repaired."),
+    preview: bool = typer.Option(True, "--preview/--no-preview", help="Render preview.png."),
+    max_rounds: int = typer.Option(3, help="Repair rounds, each followed by a full re-check."),
+) -> None:
+    """Check built assets in SAPIEN, repair, write report.json; exit 1 if any fails."""
+    from asset_pipeline.validate import validate_asset
+
+    assets: list[Path] = []
+    for p in paths:
+        if (p / "model.urdf").is_file():
+            assets.append(p)
+        elif p.is_dir():
+            assets.extend(sorted(d for d in p.iterdir() if (d / "model.urdf").is_file()))
+    if not assets:
+        console.print("[red]error:[/red] no built asset (model.urdf) under " + ", ".join(map(str, paths)))
+        raise typer.Exit(2)
+    table = Table(title="pact validate")
+    for col in ("asset", "status", "rounds", "repairs", "failed checks (value / tolerance)"):
+        table.add_column(col)
+    failed = 0
+    for a in assets:
+        try:
+            report = validate_asset(a, repair=repair, preview=preview, max_rounds=max_rounds)
+        except Exception as e:  # a broken asset never stops the batch
+            failed += 1
+            table.add_row(str(a), "[red]failed[/red]", "-", "-", f"{type(e).__name__}: {e}")
+            continue
+        failed += report.status == "failed"
+        colour = {"failed": "red", "repaired": "yellow"}.get(report.status, "green")
+        fails = "; ".join(
+            f"{c.key} ({c.value} / {c.tolerance})" for c in report.failed_checks[:5]
+        ) or ", ".join(report.reasons[:3])
+        table.add_row(
+            str(a), f"[{colour}]{report.status}[/{colour}]", str(len(report.rounds)),
+            ", ".join(r.kind for r in report.repairs) or "-", fails,
+        )
+    Console().print(table)
+    if failed:
+        raise typer.Exit(1)
+
+
 @app.command("ls")
 def ls(
     out: Path = typer.Argument(..., help="Output folder with registry.sqlite (or the file)."),

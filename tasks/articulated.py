@@ -107,6 +107,9 @@ class ArticulatedPartEnv(BaseEnv):
         self.sim_options = sim_options
         if reconfiguration_freq is None:
             reconfiguration_freq = 1 if num_envs == 1 else 0
+        # every reset draws its randomization from the episode seed, so that
+        # reset(seed=s) followed by reset() repeats (gymnasium's env checker)
+        kwargs.setdefault("enhanced_determinism", True)
         super().__init__(
             *args,
             robot_uids=robot_uids,

@@ -39,7 +39,12 @@ def test_check_env(procedural_assets: Path) -> None:
     from gymnasium.utils.env_checker import check_env
     from mani_skill.utils.wrappers import CPUGymWrapper
 
-    env = CPUGymWrapper(_make("OpenDrawer-v0", procedural_assets, obs_mode="state"))
+    from tasks.drawer import OpenDrawerEnv
+
+    # constructed directly: the TimeLimitWrapper gym.make adds cannot be re-created
+    # from its spec, which the checker tries
+    env = CPUGymWrapper(OpenDrawerEnv(assets=procedural_assets, obs_mode="state",
+                                      sim_backend="physx_cpu", render_backend="none"))
     try:
         check_env(env, skip_render_check=True)
     finally:

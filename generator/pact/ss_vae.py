@@ -25,10 +25,13 @@ class SSVAEConfig:
     channels: tuple[int, ...] = (16, 32, 64)  # one entry per level; R / r = 2 ** (levels - 1)
     num_res_blocks: int = 1  # per level, encoder and decoder
     num_mid_blocks: int = 1  # at the latent resolution
+    # 2: the stem is a stride-2 2^3 conv (and the head its transpose), so no conv runs at
+    # full resolution; CPU conv3d backward is slow and full-res layers dominate the cost.
+    stem_stride: int = 1
 
     @property
     def latent_resolution(self) -> int:
-        return self.resolution // 2 ** (len(self.channels) - 1)
+        return self.resolution // (self.stem_stride * 2 ** (len(self.channels) - 1))
 
 
 @dataclass
@@ -76,12 +79,14 @@ class SparseStructureVAE(nn.Module):
         super().__init__()
         self.cfg = cfg
         ch = cfg.channels
-        if cfg.resolution % 2 ** (len(ch) - 1):
-            raise ValueError(f"resolution {cfg.resolution} not divisible by 2**{len(ch) - 1}")
+        s = cfg.stem_stride
+        if s not in (1, 2) or cfg.resolution % (s * 2 ** (len(ch) - 1)):
+            raise ValueError(f"resolution {cfg.resolution} does not fit stem {s}, {len(ch)} levels")
         C = cfg.latent_channels
 
         # encoder: R -> r
-        enc: list[nn.Module] = [nn.Conv3d(1, ch[0], 3, padding=1)]
+        stem = nn.Conv3d(1, ch[0], 3, padding=1) if s == 1 else nn.Conv3d(1, ch[0], 2, stride=2)
+        enc: list[nn.Module] = [stem]
         for i, c in enumerate(ch):
             enc += [ResBlock3d(c, c) for _ in range(cfg.num_res_blocks)]
             if i + 1 < len(ch):
@@ -97,7 +102,10 @@ class SparseStructureVAE(nn.Module):
             dec += [ResBlock3d(ch[i], ch[i]) for _ in range(cfg.num_res_blocks)]
             if i > 0:
                 dec.append(Upsample3d(ch[i], ch[i - 1]))
-        dec += [_norm(ch[0]), nn.SiLU(), nn.Conv3d(ch[0], 1, 3, padding=1)]
+        head = (
+            nn.Conv3d(ch[0], 1, 3, padding=1) if s == 1 else nn.ConvTranspose3d(ch[0], 1, 2, 2)
+        )
+        dec += [_norm(ch[0]), nn.SiLU(), head]
         self.decoder = nn.Sequential(*dec)
 
     def encode(

@@ -1,0 +1,75 @@
+"""PPO on 20 training drawers, success on 10 held-out drawers against wall-clock.
+
+Writes ``OUT/curve.csv`` (timesteps, wall_seconds, success_rate, mean_return) and
+``OUT/curve.png`` (matplotlib), prints JSON. Train assets: procedural desks and
+cabinets of the train split; held-out: the test split.
+
+    python bench/rl.py --total-timesteps 500000 --num-envs 2 --out runs/bench_rl
+    python bench/rl.py --total-timesteps 2000 --eval-every 1000 --n-train 2 --n-test 1   # smoke
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def plot(rows: list[dict], path: Path) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot([r["wall_seconds"] / 60 for r in rows], [r["success_rate"] for r in rows], marker="o")
+    ax.set_xlabel("wall-clock (min)")
+    ax.set_ylabel("held-out success rate")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title("PPO OpenDrawer-v0: 20 train / 10 held-out drawers")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True
+
+
+def main() -> None:
+    from sim import build_procedural
+
+    from tasks.train import Args, train
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default="runs/bench_rl")
+    ap.add_argument("--n-train", type=int, default=10, help="per category (desk, cabinet): 2 x 10 = 20")
+    ap.add_argument("--n-test", type=int, default=5, help="per category: 2 x 5 = 10 held out")
+    ap.add_argument("--total-timesteps", type=int, default=500_000)
+    ap.add_argument("--num-envs", type=int, default=2)
+    ap.add_argument("--eval-every", type=int, default=25_000)
+    ap.add_argument("--eval-episodes", type=int, default=10)
+    a = ap.parse_args()
+    out = Path(a.out)
+    train_dir = build_procedural(out / "assets" / "train", n=a.n_train, split="train")
+    test_dir = build_procedural(out / "assets" / "test", n=a.n_test, split="test")
+    args = Args(env_id="OpenDrawer-v0", assets=str(train_dir), eval_assets=str(test_dir),
+                num_envs=a.num_envs, total_timesteps=a.total_timesteps, eval_every=a.eval_every,
+                eval_episodes=a.eval_episodes, out_dir=str(out / "ppo"))
+    result = train(args)
+    with open(result["eval_csv"]) as f:
+        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    curve = out / "curve.csv"
+    curve.write_text(Path(result["eval_csv"]).read_text())
+    png = out / "curve.png"
+    print(json.dumps({"bench": "rl", "curve_csv": str(curve), "curve_png": str(png) if plot(rows, png) else None,
+                      "final": rows[-1] if rows else None, "train_seconds": round(result["seconds"], 1),
+                      "policy": result["policy"]}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
