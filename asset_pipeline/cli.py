@@ -25,6 +25,11 @@ app = typer.Typer(
 console = Console(stderr=True)
 
 
+def wide_console() -> Console:
+    """Stdout console at least 160 columns wide, so ids in tables are never cut when piped."""
+    return Console(width=max(Console().width, 160))
+
+
 @app.callback()
 def _root(verbose: bool = typer.Option(False, "--verbose", "-v", help="Debug logging.")) -> None:
     logging.basicConfig(
@@ -78,7 +83,7 @@ def eval_gen(
     from generator.metrics import evaluate_dirs, format_table
 
     results = evaluate_dirs(pred, gt, n_states=n_states, n_points=n_points, seed=seed)
-    Console().print(format_table(results))
+    wide_console().print(format_table(results))
     path = out or pred / "metrics.json"
     atomic_write_bytes(path, json.dumps(results, indent=2, allow_nan=False).encode())
     console.print(f"wrote {path}")
@@ -140,7 +145,7 @@ def build(
             bad.append((str(b), detail))
         colour = {"failed": "red", "repaired": "yellow"}.get(status, "green")
         table.add_row(str(b), f"[{colour}]{status}[/{colour}]", detail)
-    Console().print(table)
+    wide_console().print(table)
     for where, why in bad:
         console.print(f"[red]failed[/red] {where}: {why}")
     if bad:
@@ -186,7 +191,7 @@ def validate_cmd(
             str(a), f"[{colour}]{report.status}[/{colour}]", str(len(report.rounds)),
             ", ".join(r.kind for r in report.repairs) or "-", fails,
         )
-    Console().print(table)
+    wide_console().print(table)
     if failed:
         raise typer.Exit(1)
 
@@ -207,7 +212,7 @@ def ls(
     except CatalogError as e:
         console.print(f"[red]error:[/red] {e}")
         raise typer.Exit(2) from e
-    Console().print(format_table(rows))
+    wide_console().print(format_table(rows))
 
 
 @app.command("import")
@@ -248,7 +253,7 @@ def gallery(out: Path = typer.Argument(..., help="Output folder of a convert or 
 def convert(
     images: Path = typer.Argument(..., help="Folder of images (+ .mask.png, + .json hints)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."),
-    generator: str = typer.Option("pact", help="pact or retrieval."),
+    generator: str = typer.Option("retrieval", help="retrieval (default until PAct ships) or pact."),
     workers: int = typer.Option(1, min=1, help="Local worker processes."),
     executor: str = typer.Option("local", help="local (process pool) or ray."),
     ray_address: str = typer.Option(None, help="Ray cluster address (with --executor ray)."),

@@ -530,10 +530,11 @@ def _read_json(path: Path) -> Any:
 
 
 def checks_from_report(report: Mapping[str, Any]) -> list[CheckRecord]:
-    """The checks of a ``report.json`` (a list of check objects or a name -> check map).
+    """The checks of a ``report.json`` (schema ``pact.validation``, asset_pipeline.validate).
 
-    Each check gives ``passed`` (or ``pass``/``ok``), ``value`` (or ``measured``),
-    ``tolerance`` and ``detail`` (or ``message``).
+    A check's catalog name is ``name[subject]`` (one check per link or joint); a key
+    that repeats (the same check in several sweep configurations) gets ``#2``, ``#3``.
+    A name -> check map (older reports) is accepted too.
     """
     raw = report.get("checks", [])
     items: list[tuple[str, Mapping[str, Any]]] = []
@@ -542,17 +543,24 @@ def checks_from_report(report: Mapping[str, Any]) -> list[CheckRecord]:
             (str(k), v if isinstance(v, Mapping) else {"passed": bool(v)}) for k, v in raw.items()
         ]
     elif isinstance(raw, list):
-        items = [
-            (str(c.get("name", f"check_{i}")), c)
-            for i, c in enumerate(raw)
-            if isinstance(c, Mapping)
-        ]
+        for i, c in enumerate(raw):
+            if not isinstance(c, Mapping):
+                continue
+            name = str(c.get("name", f"check_{i}"))
+            if c.get("subject"):
+                name = f"{name}[{c['subject']}]"
+            items.append((name, c))
     out = []
+    seen: dict[str, int] = {}
     for name, c in items:
-        detail = _first(c, "detail", "message", "details")
+        seen[name] = seen.get(name, 0) + 1
+        key = name if seen[name] == 1 else f"{name}#{seen[name]}"
+        detail = _first(c, "message", "detail")
+        if not detail and c.get("details"):
+            detail = c["details"]
         out.append(
             CheckRecord(
-                name=name,
+                name=key,
                 passed=bool(_first(c, "passed", "pass", "ok", default=False)),
                 value=_first(c, "value", "measured"),
                 tolerance=_first(c, "tolerance", "tol", "threshold"),

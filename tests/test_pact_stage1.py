@@ -50,7 +50,9 @@ TINY_FLOW = PartFlowConfig(
     cond_prefix_tokens=1,
 )
 TINY_VIT = ViTConfig(image_size=32, patch_size=16, width=16, depth=1, heads=2)
-TINY_VAE = SSVAEConfig(resolution=16, latent_channels=2, channels=(8, 8, 16), num_res_blocks=1)
+TINY_VAE = SSVAEConfig(
+    resolution=16, latent_channels=2, channels=(8, 16), num_res_blocks=1, stem_stride=2
+)
 
 
 def tiny_stage1() -> Stage1Config:

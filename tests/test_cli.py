@@ -1,0 +1,93 @@
+"""The pact command line: sample, build (with validation), validate, convert, ls, gallery."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from asset_pipeline.cli import app
+from generator.procedural import CATEGORIES
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
+runner = CliRunner()
+
+
+def test_sample_help_lists_categories():
+    r = runner.invoke(app, ["sample", "--help"])
+    assert r.exit_code == 0
+    for cat in CATEGORIES:
+        assert cat in r.output
+
+
+def test_sample_unknown_category_is_a_clear_error(tmp_path):
+    r = runner.invoke(app, ["sample", "--category", "sofa", "--out", str(tmp_path)])
+    assert r.exit_code == 2
+    assert "sofa" in r.output and "cabinet" in r.output
+
+
+def test_sample_build_validate_and_bad_bundles(tmp_path):
+    r = runner.invoke(app, ["sample", "-c", "microwave", "--n", "2", "--seed", "5", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    dirs = sorted(p for p in tmp_path.iterdir())
+    assert [d.name for d in dirs] == ["microwave_s0000005", "microwave_s0000006"]
+    # A corrupt bundle and a bundle with a missing part mesh beside the good ones.
+    bad = tmp_path / "broken"
+    shutil.copytree(dirs[0], bad)
+    (bad / "object.json").write_text("{")
+    missing = tmp_path / "missing_part"
+    shutil.copytree(dirs[1], missing)
+    (missing / "parts" / "door_0.glb").unlink()
+    r = runner.invoke(app, ["build", str(tmp_path), "--no-validate"])
+    assert r.exit_code == 1
+    assert "broken/object.json" in r.output and "not valid JSON" in r.output
+    assert "door_0.glb not found" in r.output
+    for d in dirs:  # the good ones were built despite the bad ones
+        assert (d / "model.urdf").is_file() and (d / "model.xml").is_file()
+        assert list((d / "collision").glob("*.obj"))
+    shutil.rmtree(bad)
+    shutil.rmtree(missing)
+    # Build validates by default and writes the report.
+    r = runner.invoke(app, ["build", str(dirs[0]), "--no-repair"])
+    assert r.exit_code == 0, r.output
+    report = json.loads((dirs[0] / "report.json").read_text())
+    assert report["status"] == "ok"
+    # pact validate on a broken asset: reversed limits fail, exit code 1.
+    urdf = (dirs[1] / "model.urdf").read_text()
+    import re
+
+    m = re.search(r'lower="([^"]+)" upper="([^"]+)"', urdf)
+    assert m
+    (dirs[1] / "model.urdf").write_text(
+        urdf.replace(m.group(0), f'lower="{m.group(2)}" upper="{m.group(1)}"')
+    )
+    r = runner.invoke(app, ["validate", str(dirs[0]), str(dirs[1]), "--no-preview"])
+    assert r.exit_code == 1
+    assert "failed" in r.output and "limits" in r.output
+
+
+@pytest.mark.slow
+def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
+    out = tmp_path / "out"
+    r = runner.invoke(
+        app, ["convert", str(EXAMPLES), "--out", str(out), "--generator", "retrieval",
+              "--quiet", "--log-json", str(tmp_path / "log.jsonl")],
+    )
+    assert r.exit_code == 0, r.output
+    names = sorted(p.name.split(".")[0] for p in EXAMPLES.glob("*.mask.png"))
+    for name in names:
+        report = json.loads((out / name / "report.json").read_text())
+        assert report["status"] in ("ok", "repaired")
+    lines = [json.loads(x) for x in (tmp_path / "log.jsonl").read_text().splitlines()]
+    assert sorted(x["id"] for x in lines) == names
+    assert all(set(x["stage_seconds"]) == {"load", "generate", "build", "validate"} for x in lines)
+    r = runner.invoke(app, ["ls", str(out), "--category", "cabinet"])
+    assert r.exit_code == 0 and "cabinet_t000000" in r.output and "oven" not in r.output
+    r = runner.invoke(app, ["gallery", str(out)])
+    assert r.exit_code == 0
+    html = (out / "index.html").read_text()
+    for name in names:
+        assert name in html
