@@ -199,7 +199,9 @@ def convert_item(
     except Exception as e:  # a failed item is a result, not a crash
         result.status = "failed"
         result.stage = stage
-        result.reason = f"{stage}: {e}" if isinstance(e, InputError) else f"{stage}: {type(e).__name__}: {e}"
+        result.reason = (
+            f"{stage}: {e}" if isinstance(e, InputError) else f"{stage}: {type(e).__name__}: {e}"
+        )
         log.debug("item %s failed in %s:\n%s", item.name, stage, traceback.format_exc())
         shutil.rmtree(private, ignore_errors=True)
     return result
@@ -239,7 +241,9 @@ def _register(catalog: Catalog, r: ItemResult, settings_hash: str) -> None:
                 type(rec)(**{**asdict(rec), "status": "failed", "failure_reason": r.reason})
             )
     else:
-        catalog.record_failure(r.id, r.reason or "unknown failure", category=r.category, **provenance)
+        catalog.record_failure(
+            r.id, r.reason or "unknown failure", category=r.category, **provenance
+        )
 
 
 def _local_results(
@@ -268,9 +272,12 @@ def _local_results(
                         yield fut.result()
                     except Exception as e:  # a worker process died
                         yield ItemResult(
-                            id=item.name, name=item.name, status="failed",
+                            id=item.name,
+                            name=item.name,
+                            status="failed",
                             reason=f"worker crashed: {type(e).__name__}: {e}",
-                            source_image=str(item.image_path), source_hash=item.input_hash,
+                            source_image=str(item.image_path),
+                            source_hash=item.input_hash,
                             generator=settings.generator,
                         )
 
@@ -301,9 +308,12 @@ def _ray_results(
                 yield ray.get(ref)
             except Exception as e:
                 yield ItemResult(
-                    id=item.name, name=item.name, status="failed",
+                    id=item.name,
+                    name=item.name,
+                    status="failed",
                     reason=f"ray task failed: {type(e).__name__}: {e}",
-                    source_image=str(item.image_path), source_hash=item.input_hash,
+                    source_image=str(item.image_path),
+                    source_hash=item.input_hash,
                     generator=settings.generator,
                 )
 

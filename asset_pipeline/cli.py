@@ -69,9 +69,13 @@ def sample(
 
 @app.command("eval-gen")
 def eval_gen(
-    pred: Path = typer.Option(..., "--pred", help="Folder of predicted bundles (<id>/object.json)."),
+    pred: Path = typer.Option(
+        ..., "--pred", help="Folder of predicted bundles (<id>/object.json)."
+    ),
     gt: Path = typer.Option(..., "--gt", help="Folder of ground-truth bundles, matched by <id>."),
-    out: Path = typer.Option(None, "--out", help="JSON file to write (default: PRED/metrics.json)."),
+    out: Path = typer.Option(
+        None, "--out", help="JSON file to write (default: PRED/metrics.json)."
+    ),
     n_states: int = typer.Option(5, help="Articulated states sampled for AS- metrics."),
     n_points: int = typer.Option(10_000, help="Surface points per object for dCD."),
     seed: int = typer.Option(0, help="Seed of the surface sampling."),
@@ -169,7 +173,9 @@ def validate_cmd(
         elif p.is_dir():
             assets.extend(sorted(d for d in p.iterdir() if (d / "model.urdf").is_file()))
     if not assets:
-        console.print("[red]error:[/red] no built asset (model.urdf) under " + ", ".join(map(str, paths)))
+        console.print(
+            "[red]error:[/red] no built asset (model.urdf) under " + ", ".join(map(str, paths))
+        )
         raise typer.Exit(2)
     table = Table(title="pact validate")
     for col in ("asset", "status", "rounds", "repairs", "failed checks (value / tolerance)"):
@@ -188,8 +194,11 @@ def validate_cmd(
             f"{c.key} ({c.value} / {c.tolerance})" for c in report.failed_checks[:5]
         ) or ", ".join(report.reasons[:3])
         table.add_row(
-            str(a), f"[{colour}]{report.status}[/{colour}]", str(len(report.rounds)),
-            ", ".join(r.kind for r in report.repairs) or "-", fails,
+            str(a),
+            f"[{colour}]{report.status}[/{colour}]",
+            str(len(report.rounds)),
+            ", ".join(r.kind for r in report.repairs) or "-",
+            fails,
         )
     wide_console().print(table)
     if failed:
@@ -217,7 +226,9 @@ def ls(
 
 @app.command("import")
 def import_(
-    path: Path = typer.Argument(..., help="A PAct or SINGAPO output (object.json) or a folder of them."),
+    path: Path = typer.Argument(
+        ..., help="A PAct or SINGAPO output (object.json) or a folder of them."
+    ),
     out: Path = typer.Option(..., "--out", "-o", help="Folder to write bundles into."),
     up: str = typer.Option("y", help="Up axis of the source meshes (y for SINGAPO/PAct)."),
     category: str = typer.Option(None, help="Category to record when the source has none."),
@@ -238,7 +249,9 @@ def import_(
 
 
 @app.command()
-def gallery(out: Path = typer.Argument(..., help="Output folder of a convert or build run.")) -> None:
+def gallery(
+    out: Path = typer.Argument(..., help="Output folder of a convert or build run."),
+) -> None:
     """Write OUT/index.html: inputs, previews, joints and validation status per asset."""
     from asset_pipeline.gallery import write_gallery
 
@@ -252,16 +265,28 @@ def gallery(out: Path = typer.Argument(..., help="Output folder of a convert or 
 @app.command()
 def convert(
     images: Path = typer.Argument(..., help="Folder of images (+ .mask.png, + .json hints)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."),
-    generator: str = typer.Option("retrieval", help="retrieval (default until PAct ships) or pact."),
+    out: Path = typer.Option(
+        ..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."
+    ),
+    generator: str = typer.Option(
+        "retrieval", help="retrieval (default until PAct ships) or pact."
+    ),
     workers: int = typer.Option(1, min=1, help="Local worker processes."),
     executor: str = typer.Option("local", help="local (process pool) or ray."),
     ray_address: str = typer.Option(None, help="Ray cluster address (with --executor ray)."),
-    force: bool = typer.Option(False, help="Redo items already converted with the same input and settings."),
-    validate: bool = typer.Option(True, "--validate/--no-validate", help="Validate and repair in SAPIEN."),
-    preview: bool = typer.Option(True, "--preview/--no-preview", help="Render preview.png per asset."),
+    force: bool = typer.Option(
+        False, help="Redo items already converted with the same input and settings."
+    ),
+    validate: bool = typer.Option(
+        True, "--validate/--no-validate", help="Validate and repair in SAPIEN."
+    ),
+    preview: bool = typer.Option(
+        True, "--preview/--no-preview", help="Render preview.png per asset."
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar or table."),
-    log_json: Path = typer.Option(None, help="Append one JSON line per item to this file ('-' = stdout)."),
+    log_json: Path = typer.Option(
+        None, help="Append one JSON line per item to this file ('-' = stdout)."
+    ),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -294,7 +319,9 @@ def convert(
 
     def on_stage(name: str, stage: str) -> None:
         running[name] = stage
-        progress.update(task, description=" ".join(f"{n}:{s}" for n, s in list(running.items())[-3:]))
+        progress.update(
+            task, description=" ".join(f"{n}:{s}" for n, s in list(running.items())[-3:])
+        )
 
     def on_result(r) -> None:  # noqa: ANN001
         running.pop(r.name, None)
@@ -306,9 +333,16 @@ def convert(
     try:
         with progress:
             summary = run_convert(
-                images, out, settings, workers=workers, executor=executor,
-                ray_address=ray_address, force=force,
-                on_start=on_start, on_stage=on_stage, on_result=on_result,
+                images,
+                out,
+                settings,
+                workers=workers,
+                executor=executor,
+                ray_address=ray_address,
+                force=force,
+                on_start=on_start,
+                on_stage=on_stage,
+                on_result=on_result,
             )
     except (FileNotFoundError, ValueError) as e:
         console.print(f"[red]error:[/red] {e}")
@@ -323,8 +357,11 @@ def convert(
         for r in summary.results:
             colour = {"failed": "red", "repaired": "yellow"}.get(r.status, "green")
             table.add_row(
-                r.id, f"[{colour}]{r.status}[/{colour}]", r.category,
-                f"{sum(r.stage_seconds.values()):.1f}", r.reason or "",
+                r.id,
+                f"[{colour}]{r.status}[/{colour}]",
+                r.category,
+                f"{sum(r.stage_seconds.values()):.1f}",
+                r.reason or "",
             )
         Console(stderr=True).print(table)
         console.print(
@@ -336,13 +373,109 @@ def convert(
         raise typer.Exit(1)
 
 
-dataset_app = typer.Typer(help="Rendered procedural training data (docs/dataset.md).", no_args_is_help=True)
+# --------------------------------------------------------------------------- tasks (thin entry points)
+
+
+@app.command("check-tasks")
+def check_tasks_cmd(
+    path: Path = typer.Argument(..., help="Folder of built assets, one asset or a catalog file."),
+    category: str = typer.Option(None, help="Category filter."),
+    seed: int = typer.Option(0, help="Seed of the episode resets."),
+    out: Path = typer.Option(None, help="Write the per-part results as JSON here."),
+) -> None:
+    """Can a robot really open each part? Runs the scripted solver on every movable part."""
+    import json
+    from dataclasses import asdict
+
+    from tasks.solver import check_tasks, summarize
+
+    results = check_tasks(path, seed=seed, category=category)
+    table = Table(title="pact check-tasks")
+    for col in ("asset", "part", "task", "opened", "fraction", "seconds", "reason"):
+        table.add_column(col)
+    for r in results:
+        ok = "[green]yes[/green]" if r.success else "[red]no[/red]"
+        table.add_row(
+            r.asset_id,
+            r.part,
+            r.env_id,
+            ok,
+            f"{r.final_fraction:.2f}",
+            f"{r.seconds:.1f}",
+            r.reason,
+        )
+    wide_console().print(table)
+    summary = summarize(results)
+    console.print(f"opened {summary['opened']} of {summary['parts']} parts ({summary['rate']:.0%})")
+    if out is not None:
+        from generator.articulated import atomic_write_bytes
+
+        atomic_write_bytes(
+            out, json.dumps({**summary, "results": [asdict(r) for r in results]}, indent=2).encode()
+        )
+    if summary["opened"] < summary["parts"]:
+        raise typer.Exit(1)
+
+
+@app.command()
+def train(
+    task: str = typer.Option("OpenDrawer-v0", "--task", help="Registered task id."),
+    assets: str = typer.Option(..., "--assets", help="Folder of built assets or catalog file."),
+    steps: int = typer.Option(200_000, "--steps", help="Environment steps."),
+    eval_assets: str = typer.Option(None, help="Held-out assets for periodic evaluation."),
+    num_envs: int = typer.Option(2, help="Parallel envs (processes on CPU)."),
+    sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
+    out: str = typer.Option(
+        "runs/ppo", help="Run folder: policy.zip, progress.csv, eval.csv, TensorBoard."
+    ),
+    seed: int = typer.Option(0),
+) -> None:
+    """Train a PPO policy (stable-baselines3) on a drawer/door task."""
+    from tasks.train import Args
+    from tasks.train import train as run_training
+
+    args = Args(
+        env_id=task,
+        assets=assets,
+        total_timesteps=steps,
+        eval_assets=eval_assets,
+        num_envs=num_envs,
+        sim_backend=sim_backend,
+        out_dir=out,
+        seed=seed,
+    )
+    summary = run_training(args)
+    console.print(summary)
+
+
+@app.command("eval-policy")
+def eval_policy(
+    policy: Path = typer.Argument(..., help="policy.zip written by pact train."),
+    task: str = typer.Option("OpenDrawer-v0", "--task"),
+    assets: str = typer.Option(..., "--assets", help="Held-out assets (folder or catalog)."),
+    episodes: int = typer.Option(10),
+    video_dir: Path = typer.Option(None, help="Record one video per episode here."),
+) -> None:
+    """Success rate and return of a trained policy on held-out assets."""
+    import json
+
+    from tasks.train import evaluate
+
+    result = evaluate(str(policy), task, assets, episodes=episodes, video_dir=video_dir)
+    print(json.dumps(result, indent=2, default=str))
+
+
+dataset_app = typer.Typer(
+    help="Rendered procedural training data (docs/dataset.md).", no_args_is_help=True
+)
 app.add_typer(dataset_app, name="dataset")
 
 
 @dataset_app.command("build")
 def dataset_build(
-    n: int = typer.Option(..., "--n", min=1, help="Number of objects (cycling through categories)."),
+    n: int = typer.Option(
+        ..., "--n", min=1, help="Number of objects (cycling through categories)."
+    ),
     views: int = typer.Option(8, "--views", min=1, help="Rendered views per object."),
     out: Path = typer.Option(..., "--out", "-o", help="Dataset folder (manifest.json + shards)."),
     seed: int = typer.Option(0, "--seed", help="Object i uses seed + i."),
@@ -356,8 +489,14 @@ def dataset_build(
 
     try:
         manifest = build_dataset(
-            out, n, views, seed, split=split, resolution=resolution,
-            image_size=image_size, progress=not quiet,
+            out,
+            n,
+            views,
+            seed,
+            split=split,
+            resolution=resolution,
+            image_size=image_size,
+            progress=not quiet,
         )
     except DatasetError as e:
         console.print(f"[red]error:[/red] {e}")

@@ -54,7 +54,11 @@ def main() -> None:
     seconds = []
     for oid in ids:
         img = np.asarray(Image.open(args.split_dir / "images" / f"{oid}.png").convert("RGB"))
-        mask = None if args.no_mask else np.asarray(Image.open(args.split_dir / "images" / f"{oid}.mask.png"))
+        mask = (
+            None
+            if args.no_mask
+            else np.asarray(Image.open(args.split_dir / "images" / f"{oid}.mask.png"))
+        )
         hints = json.loads((args.split_dir / "images" / f"{oid}.json").read_text())
         if not args.category_hint:
             hints.pop("category", None)

@@ -47,7 +47,9 @@ def main() -> None:
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="runs/bench_rl")
-    ap.add_argument("--n-train", type=int, default=10, help="per category (desk, cabinet): 2 x 10 = 20")
+    ap.add_argument(
+        "--n-train", type=int, default=10, help="per category (desk, cabinet): 2 x 10 = 20"
+    )
     ap.add_argument("--n-test", type=int, default=5, help="per category: 2 x 5 = 10 held out")
     ap.add_argument("--total-timesteps", type=int, default=500_000)
     ap.add_argument("--num-envs", type=int, default=2)
@@ -57,18 +59,35 @@ def main() -> None:
     out = Path(a.out)
     train_dir = build_procedural(out / "assets" / "train", n=a.n_train, split="train")
     test_dir = build_procedural(out / "assets" / "test", n=a.n_test, split="test")
-    args = Args(env_id="OpenDrawer-v0", assets=str(train_dir), eval_assets=str(test_dir),
-                num_envs=a.num_envs, total_timesteps=a.total_timesteps, eval_every=a.eval_every,
-                eval_episodes=a.eval_episodes, out_dir=str(out / "ppo"))
+    args = Args(
+        env_id="OpenDrawer-v0",
+        assets=str(train_dir),
+        eval_assets=str(test_dir),
+        num_envs=a.num_envs,
+        total_timesteps=a.total_timesteps,
+        eval_every=a.eval_every,
+        eval_episodes=a.eval_episodes,
+        out_dir=str(out / "ppo"),
+    )
     result = train(args)
     with open(result["eval_csv"]) as f:
         rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
     curve = out / "curve.csv"
     curve.write_text(Path(result["eval_csv"]).read_text())
     png = out / "curve.png"
-    print(json.dumps({"bench": "rl", "curve_csv": str(curve), "curve_png": str(png) if plot(rows, png) else None,
-                      "final": rows[-1] if rows else None, "train_seconds": round(result["seconds"], 1),
-                      "policy": result["policy"]}, indent=2))
+    print(
+        json.dumps(
+            {
+                "bench": "rl",
+                "curve_csv": str(curve),
+                "curve_png": str(png) if plot(rows, png) else None,
+                "final": rows[-1] if rows else None,
+                "train_seconds": round(result["seconds"], 1),
+                "policy": result["policy"],
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -18,8 +18,13 @@ import gymnasium as gym
 import numpy as np
 
 
-def build_procedural(out: Path, categories: tuple[str, ...] = ("desk", "cabinet"), n: int = 2,
-                     split: str = "train", seed0: int = 0) -> Path:
+def build_procedural(
+    out: Path,
+    categories: tuple[str, ...] = ("desk", "cabinet"),
+    n: int = 2,
+    split: str = "train",
+    seed0: int = 0,
+) -> Path:
     from asset_pipeline.build import build_asset
     from generator.articulated import save_bundle
     from generator.procedural import object_id, sample_object
@@ -34,8 +39,13 @@ def _make(assets: str, obs_mode: str, control_mode: str):
     def thunk():
         from tasks.train import make_cpu_env
 
-        return make_cpu_env("OpenDrawer-v0", assets, obs_mode=obs_mode, control_mode=control_mode,
-                            render_backend="none" if obs_mode == "state" else "cpu")
+        return make_cpu_env(
+            "OpenDrawer-v0",
+            assets,
+            obs_mode=obs_mode,
+            control_mode=control_mode,
+            render_backend="none" if obs_mode == "state" else "cpu",
+        )
 
     return thunk
 
@@ -43,8 +53,11 @@ def _make(assets: str, obs_mode: str, control_mode: str):
 def measure(assets: str, obs_mode: str, procs: int, steps: int, control_mode: str) -> dict:
     fns = [_make(assets, obs_mode, control_mode) for _ in range(procs)]
     mode = gym.vector.AutoresetMode.SAME_STEP
-    venv = (gym.vector.SyncVectorEnv(fns, autoreset_mode=mode) if procs == 1
-            else gym.vector.AsyncVectorEnv(fns, autoreset_mode=mode, context="spawn"))
+    venv = (
+        gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
+        if procs == 1
+        else gym.vector.AsyncVectorEnv(fns, autoreset_mode=mode, context="spawn")
+    )
     try:
         venv.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -53,15 +66,24 @@ def measure(assets: str, obs_mode: str, procs: int, steps: int, control_mode: st
         t0 = time.perf_counter()
         episodes = 0
         for _ in range(steps):
-            _, _, term, trunc, _ = venv.step(rng.uniform(-1, 1, venv.action_space.shape).astype(np.float32))
+            _, _, term, trunc, _ = venv.step(
+                rng.uniform(-1, 1, venv.action_space.shape).astype(np.float32)
+            )
             episodes += int(np.sum(term | trunc))
         dt = time.perf_counter() - t0
     finally:
         venv.close()
     total = steps * procs
-    return {"obs_mode": obs_mode, "processes": procs, "control_mode": control_mode,
-            "env_steps": total, "seconds": round(dt, 2), "steps_per_s": round(total / dt, 1),
-            "steps_per_s_per_process": round(total / dt / procs, 1), "episodes_reset": episodes}
+    return {
+        "obs_mode": obs_mode,
+        "processes": procs,
+        "control_mode": control_mode,
+        "env_steps": total,
+        "seconds": round(dt, 2),
+        "steps_per_s": round(total / dt, 1),
+        "steps_per_s_per_process": round(total / dt / procs, 1),
+        "episodes_reset": episodes,
+    }
 
 
 def main() -> None:
@@ -70,7 +92,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=300, help="vector steps per measurement")
     ap.add_argument("--rgb-steps", type=int, default=60)
     ap.add_argument("--procs", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--control-modes", nargs="+", default=["pd_joint_delta_pos", "pd_ee_delta_pose"])
+    ap.add_argument(
+        "--control-modes", nargs="+", default=["pd_joint_delta_pos", "pd_ee_delta_pose"]
+    )
     ap.add_argument("--no-rgb", action="store_true")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -82,9 +106,18 @@ def main() -> None:
         if not a.no_rgb:
             for p in a.procs:
                 results.append(measure(assets, "rgb", p, a.rgb_steps, a.control_modes[0]))
-    print(json.dumps({"bench": "sim", "task": "OpenDrawer-v0", "max_episode_steps": 100,
-                      "note": "random actions; each episode end reloads an asset (reconfigure)",
-                      "results": results}, indent=2))
+    print(
+        json.dumps(
+            {
+                "bench": "sim",
+                "task": "OpenDrawer-v0",
+                "max_episode_steps": 100,
+                "note": "random actions; each episode end reloads an asset (reconfigure)",
+                "results": results,
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -298,7 +298,9 @@ class ArticulatedObject:
                     raise err(f"{where}.joint.parent", f"parent {j.parent!r} does not exist")
                 raise err(f"{where}.joint.parent", f"the tree is depth 1: parent must be {BASE!r}")
             if j.origin.shape != (3,) or not np.isfinite(j.origin).all():
-                raise err(f"{where}.joint.origin", f"must be 3 finite numbers, got {j.origin.tolist()}")
+                raise err(
+                    f"{where}.joint.origin", f"must be 3 finite numbers, got {j.origin.tolist()}"
+                )
             if j.axis.shape != (3,) or not np.isfinite(j.axis).all():
                 raise err(f"{where}.joint.axis", f"must be 3 finite numbers, got {j.axis.tolist()}")
             n = float(np.linalg.norm(j.axis))
@@ -436,7 +438,9 @@ def load_bundle(directory: str | Path) -> ArticulatedObject:
             handle = None if pd.get("handle") is None else Handle.from_json(pd["handle"])
             prims = [Primitive.from_json(q) for q in pd.get("primitives", [])]
         except (KeyError, TypeError, ValueError) as e:
-            raise ObjectModelError(f"{src}: {where} ({name}): malformed joint/handle/primitive: {e}") from e
+            raise ObjectModelError(
+                f"{src}: {where} ({name}): malformed joint/handle/primitive: {e}"
+            ) from e
         parts.append(
             Part(
                 name=name,

@@ -162,7 +162,9 @@ class RetrievalLibrary:
     def load(cls, path: str | Path) -> RetrievalLibrary:
         with np.load(path, allow_pickle=False) as z:
             if int(z["version"]) != LIBRARY_VERSION:
-                raise ValueError(f"{path}: retrieval library version {int(z['version'])} != {LIBRARY_VERSION}")
+                raise ValueError(
+                    f"{path}: retrieval library version {int(z['version'])} != {LIBRARY_VERSION}"
+                )
             return cls(**{k: z[k] for k in cls.__dataclass_fields__})
 
     @classmethod
@@ -261,7 +263,11 @@ def scale_object(obj: ArticulatedObject, S: np.ndarray) -> ArticulatedObject:
                 new_axis = axis / S
                 new_axis = new_axis / np.linalg.norm(new_axis)
             joint = Joint(
-                p.joint.type, p.joint.origin * S, new_axis, p.joint.lower * f, p.joint.upper * f,
+                p.joint.type,
+                p.joint.origin * S,
+                new_axis,
+                p.joint.lower * f,
+                p.joint.upper * f,
                 p.joint.parent,
             )
         handle = None
@@ -269,8 +275,15 @@ def scale_object(obj: ArticulatedObject, S: np.ndarray) -> ArticulatedObject:
             ax = p.handle.axis * S
             handle = Handle(p.handle.position * S, ax / np.linalg.norm(ax), p.handle.kind)
         parts.append(
-            Part(p.name, p.semantic, mesh, joint, [_scale_primitive(q, S) for q in p.primitives],
-                 handle, p.material)
+            Part(
+                p.name,
+                p.semantic,
+                mesh,
+                joint,
+                [_scale_primitive(q, S) for q in p.primitives],
+                handle,
+                p.material,
+            )
         )
     return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
 
@@ -295,7 +308,9 @@ def keep_parts(obj: ArticulatedObject, order: list[str]) -> ArticulatedObject:
         k = counters.get(p.semantic, 0)
         counters[p.semantic] = k + 1
         parts.append(
-            Part(f"{p.semantic}_{k}", p.semantic, p.mesh, p.joint, p.primitives, p.handle, p.material)
+            Part(
+                f"{p.semantic}_{k}", p.semantic, p.mesh, p.joint, p.primitives, p.handle, p.material
+            )
         )
     return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
 
@@ -347,8 +362,12 @@ class RetrievalGenerator:
                 diff = np.abs(lib.part_counts.astype(int) - len(layout))
                 cand &= diff == diff[cand].min()
             lay_cost = np.array(
-                [layout_cost(layout, lib.layouts[i][~np.isnan(lib.layouts[i][:, 0])])[0]
-                 if cand[i] else np.inf for i in range(len(cand))]
+                [
+                    layout_cost(layout, lib.layouts[i][~np.isnan(lib.layouts[i][:, 0])])[0]
+                    if cand[i]
+                    else np.inf
+                    for i in range(len(cand))
+                ]
             )
             cost = cost + LAYOUT_WEIGHT * lay_cost
         cost = np.where(cand, cost, np.inf)
@@ -408,4 +427,6 @@ if __name__ == "__main__":
     t = time.perf_counter()
     lib = RetrievalLibrary.build()
     lib.save(SHIPPED_LIBRARY)
-    log.info("wrote %s (%d views, %.0f s)", SHIPPED_LIBRARY, len(lib.seeds), time.perf_counter() - t)
+    log.info(
+        "wrote %s (%d views, %.0f s)", SHIPPED_LIBRARY, len(lib.seeds), time.perf_counter() - t
+    )

@@ -18,8 +18,16 @@ from PIL import Image
 from generator.data.render import ObjectRenderer, ViewConfig, sample_view
 from generator.procedural import object_id, sample_object
 
-EXAMPLES = [("cabinet", 1), ("cabinet", 2), ("desk", 1), ("microwave", 1), ("oven", 1),
-            ("dishwasher", 1), ("refrigerator", 1), ("washing_machine", 1)]
+EXAMPLES = [
+    ("cabinet", 1),
+    ("cabinet", 2),
+    ("desk", 1),
+    ("microwave", 1),
+    ("oven", 1),
+    ("dishwasher", 1),
+    ("refrigerator", 1),
+    ("washing_machine", 1),
+]
 
 
 def main() -> None:

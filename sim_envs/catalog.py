@@ -157,7 +157,9 @@ def validation_failed(folder: Path) -> bool:
     return status in FAILED_STATUSES or data.get("passed") is False or data.get("ok") is False
 
 
-def _matches(rec: AssetRecord, category: str | Sequence[str] | None, joint_type: str | None) -> bool:
+def _matches(
+    rec: AssetRecord, category: str | Sequence[str] | None, joint_type: str | None
+) -> bool:
     if category is not None:
         cats = {category} if isinstance(category, str) else set(category)
         if rec.category not in cats:
@@ -272,7 +274,9 @@ class CatalogSource(AssetSource):
                 cats = {self.category} if isinstance(self.category, str) else set(self.category)
                 if r.get("category") not in cats:
                     continue
-            if self.joint_type is not None and self.joint_type not in _split_types(r.get("joint_types")):
+            if self.joint_type is not None and self.joint_type not in _split_types(
+                r.get("joint_types")
+            ):
                 continue
             out.append(r)
         return out

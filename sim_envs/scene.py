@@ -106,9 +106,13 @@ def rotate_z(v: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     return out
 
 
-def handle_world_positions(link_pose_matrix: torch.Tensor, handle_link: torch.Tensor) -> torch.Tensor:
+def handle_world_positions(
+    link_pose_matrix: torch.Tensor, handle_link: torch.Tensor
+) -> torch.Tensor:
     """(B, 4, 4) link poses and (B, 3) link-frame handle points -> (B, 3) world points."""
-    return (link_pose_matrix[:, :3, :3] @ handle_link[:, :, None])[..., 0] + link_pose_matrix[:, :3, 3]
+    return (link_pose_matrix[:, :3, :3] @ handle_link[:, :, None])[..., 0] + link_pose_matrix[
+        :, :3, 3
+    ]
 
 
 def as_tensor(x: Any, device: torch.device | str) -> torch.Tensor:

@@ -123,7 +123,9 @@ class ArticulatedPartEnv(BaseEnv):
     def _default_sim_config(self) -> SimConfig:
         return SimConfig(
             spacing=5,
-            gpu_memory_config=GPUMemoryConfig(max_rigid_contact_count=2**21, max_rigid_patch_count=2**19),
+            gpu_memory_config=GPUMemoryConfig(
+                max_rigid_contact_count=2**21, max_rigid_patch_count=2**19
+            ),
         )
 
     @property
@@ -133,7 +135,13 @@ class ArticulatedPartEnv(BaseEnv):
         pose = sapien_utils.look_at(eye=[-0.25, 0.0, 0.9], target=[0.6, 0.0, 0.3])
         return [
             CameraConfig(
-                "base_camera", pose=pose, width=128, height=128, fov=np.pi / 2, near=0.01, far=10,
+                "base_camera",
+                pose=pose,
+                width=128,
+                height=128,
+                fov=np.pi / 2,
+                near=0.01,
+                far=10,
                 mount=self.agent.robot.links_map["panda_link0"],
             )
         ]
@@ -141,7 +149,9 @@ class ArticulatedPartEnv(BaseEnv):
     @property
     def _default_human_render_camera_configs(self) -> CameraConfig:
         pose = sapien_utils.look_at(eye=[2.2, -1.6, 1.6], target=[0.3, 0.0, 0.5])
-        return CameraConfig("render_camera", pose=pose, width=512, height=512, fov=1.0, near=0.01, far=20)
+        return CameraConfig(
+            "render_camera", pose=pose, width=512, height=512, fov=1.0, near=0.01, far=20
+        )
 
     # ------------------------------------------------------------------ loading
     def _load_agent(self, options: dict) -> None:
@@ -165,9 +175,13 @@ class ArticulatedPartEnv(BaseEnv):
             if self.target_part is not None:
                 parts = [p for p in parts if p.name == self.target_part]
                 if not parts:
-                    raise ValueError(f"{rec.id}: no {self.joint_type} part named {self.target_part!r}")
+                    raise ValueError(
+                        f"{rec.id}: no {self.joint_type} part named {self.target_part!r}"
+                    )
             part = parts[int(part_pick[i]) % len(parts)]
-            art = load_asset(self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options)
+            art = load_asset(
+                self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options
+            )
             self.remove_from_state_dict_registry(art)
             objects.append(art)
             link = art.links_map[part.name]
@@ -243,17 +257,23 @@ class ArticulatedPartEnv(BaseEnv):
     # ------------------------------------------------------------------ task
     def target_qpos(self) -> torch.Tensor:
         """(N,) joint value of each env's target part."""
-        return self.object.get_qpos()[torch.arange(self.num_envs, device=self.device), self.target_dof_idx]
+        return self.object.get_qpos()[
+            torch.arange(self.num_envs, device=self.device), self.target_dof_idx
+        ]
 
     def target_qvel(self) -> torch.Tensor:
-        return self.object.get_qvel()[torch.arange(self.num_envs, device=self.device), self.target_dof_idx]
+        return self.object.get_qvel()[
+            torch.arange(self.num_envs, device=self.device), self.target_dof_idx
+        ]
 
     def open_fraction(self) -> torch.Tensor:
         return (self.target_qpos() - self.qlow) / self.qrange
 
     def handle_positions(self) -> torch.Tensor:
         """(N, 3) world position of each env's target handle."""
-        return handle_world_positions(self.target_link.pose.to_transformation_matrix(), self.handle_link_pos)
+        return handle_world_positions(
+            self.target_link.pose.to_transformation_matrix(), self.handle_link_pos
+        )
 
     def joint_axis_world(self) -> torch.Tensor:
         return rotate_z(self.joint_axis_obj, self.object_yaw)
@@ -310,5 +330,7 @@ class ArticulatedPartEnv(BaseEnv):
         reward = torch.where(info["success"], torch.full_like(reward, self.max_reward), reward)
         return reward
 
-    def compute_normalized_dense_reward(self, obs: Any, action: torch.Tensor, info: dict) -> torch.Tensor:
+    def compute_normalized_dense_reward(
+        self, obs: Any, action: torch.Tensor, info: dict
+    ) -> torch.Tensor:
         return self.compute_dense_reward(obs=obs, action=action, info=info) / self.max_reward

@@ -71,7 +71,9 @@ def _np(x: Any) -> np.ndarray:
     return x.detach().cpu().numpy() if hasattr(x, "detach") else np.asarray(x)
 
 
-def grasp_frame(approach: np.ndarray, bar_axis: np.ndarray, center: np.ndarray, hint_y: np.ndarray) -> np.ndarray:
+def grasp_frame(
+    approach: np.ndarray, bar_axis: np.ndarray, center: np.ndarray, hint_y: np.ndarray
+) -> np.ndarray:
     """Tcp pose (4, 4) at ``center``: z along ``approach``, fingers (y) closing across the bar.
 
     Of the two closing directions the one nearer ``hint_y`` (the current tcp y) is used.
@@ -111,7 +113,9 @@ class ScriptedSolver:
         if self.u.num_envs != 1:
             raise ValueError("the scripted solver drives one env (num_envs=1, physx_cpu)")
         if self.u.control_mode != "pd_ee_delta_pose":
-            raise ValueError(f"the scripted solver needs control_mode='pd_ee_delta_pose', got {self.u.control_mode!r}")
+            raise ValueError(
+                f"the scripted solver needs control_mode='pd_ee_delta_pose', got {self.u.control_mode!r}"
+            )
         self.cfg = config or SolverConfig()
 
     # ---- state
@@ -223,7 +227,9 @@ class ScriptedSolver:
                 break
         success = bool(_np(info.get("success", [False]))[0]) if info else False
         reason = "" if success else f"final open fraction {frac():.2f}"
-        return SolveResult(success=success, steps=step, final_fraction=frac(), phase=phase, reason=reason)
+        return SolveResult(
+            success=success, steps=step, final_fraction=frac(), phase=phase, reason=reason
+        )
 
 
 # --------------------------------------------------------------------------- check_tasks
@@ -291,13 +297,33 @@ def check_tasks(
             t0 = time.perf_counter()
             try:
                 res, env_id = solve_part(rec, part.name, seed=seed, config=config)
-                pc = PartCheck(rec.id, part.name, part.joint_type, env_id, res.success, res.steps,
-                               res.final_fraction, time.perf_counter() - t0, res.reason)
+                pc = PartCheck(
+                    rec.id,
+                    part.name,
+                    part.joint_type,
+                    env_id,
+                    res.success,
+                    res.steps,
+                    res.final_fraction,
+                    time.perf_counter() - t0,
+                    res.reason,
+                )
             except Exception as e:  # a broken asset is a failed check, not a crash
                 log.exception("check of %s/%s failed", rec.id, part.name)
-                pc = PartCheck(rec.id, part.name, part.joint_type, ENV_FOR_JOINT[part.joint_type],
-                               False, 0, 0.0, time.perf_counter() - t0, f"{type(e).__name__}: {e}")
-            log.info("%s/%s: %s", rec.id, part.name, "opened" if pc.success else f"failed ({pc.reason})")
+                pc = PartCheck(
+                    rec.id,
+                    part.name,
+                    part.joint_type,
+                    ENV_FOR_JOINT[part.joint_type],
+                    False,
+                    0,
+                    0.0,
+                    time.perf_counter() - t0,
+                    f"{type(e).__name__}: {e}",
+                )
+            log.info(
+                "%s/%s: %s", rec.id, part.name, "opened" if pc.success else f"failed ({pc.reason})"
+            )
             out.append(pc)
     return out
 

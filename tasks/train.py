@@ -109,8 +109,12 @@ def make_cpu_env(
     import tasks  # noqa: F401  (registers the envs)
 
     kwargs.setdefault("obs_mode", "state")
-    kwargs.setdefault("render_backend", "none" if render_mode is None and kwargs["obs_mode"] == "state" else "cpu")
-    env = gym.make(env_id, assets=assets, sim_backend="physx_cpu", render_mode=render_mode, **kwargs)
+    kwargs.setdefault(
+        "render_backend", "none" if render_mode is None and kwargs["obs_mode"] == "state" else "cpu"
+    )
+    env = gym.make(
+        env_id, assets=assets, sim_backend="physx_cpu", render_mode=render_mode, **kwargs
+    )
     env = CPUGymWrapper(env)
     env = SuccessInfo(FlattenStateObs(env))
     env.action_space.seed(seed)
@@ -120,8 +124,12 @@ def make_cpu_env(
 def _env_fn(args: Args, rank: int):
     def thunk() -> gym.Env:
         return make_cpu_env(
-            args.env_id, args.assets, seed=args.seed + rank, category=args.category,
-            control_mode=args.control_mode, reward_mode=args.reward_mode,
+            args.env_id,
+            args.assets,
+            seed=args.seed + rank,
+            category=args.category,
+            control_mode=args.control_mode,
+            reward_mode=args.reward_mode,
             max_episode_steps=args.max_episode_steps,
         )
 
@@ -210,9 +218,15 @@ def make_train_env(args: Args):
     import tasks  # noqa: F401
 
     env = gym.make(
-        args.env_id, assets=args.assets, category=args.category, num_envs=args.num_envs,
-        sim_backend=args.sim_backend, obs_mode="state", control_mode=args.control_mode,
-        reward_mode=args.reward_mode, max_episode_steps=args.max_episode_steps,
+        args.env_id,
+        assets=args.assets,
+        category=args.category,
+        num_envs=args.num_envs,
+        sim_backend=args.sim_backend,
+        obs_mode="state",
+        control_mode=args.control_mode,
+        reward_mode=args.reward_mode,
+        max_episode_steps=args.max_episode_steps,
     )
     return ManiSkillSB3VectorEnv(env)
 
@@ -263,7 +277,10 @@ def evaluate(
     return {
         "success_rate": float(np.mean(successes)) if successes else 0.0,
         "mean_return": float(np.mean(returns)) if returns else 0.0,
-        "episodes": [{"asset": a, "success": s, "return": float(r)} for a, s, r in zip(ids, successes, returns, strict=True)],
+        "episodes": [
+            {"asset": a, "success": s, "return": float(r)}
+            for a, s, r in zip(ids, successes, returns, strict=True)
+        ],
     }
 
 
@@ -304,10 +321,19 @@ def train(args: Args) -> dict[str, Any]:
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
     model = PPO(
-        "MlpPolicy", venv, learning_rate=args.learning_rate, n_steps=args.n_steps,
-        batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma,
-        gae_lambda=args.gae_lambda, ent_coef=args.ent_coef, seed=args.seed, device=args.device,
-        policy_kwargs={"net_arch": list(args.net_arch)}, verbose=0,
+        "MlpPolicy",
+        venv,
+        learning_rate=args.learning_rate,
+        n_steps=args.n_steps,
+        batch_size=args.batch_size,
+        n_epochs=args.n_epochs,
+        gamma=args.gamma,
+        gae_lambda=args.gae_lambda,
+        ent_coef=args.ent_coef,
+        seed=args.seed,
+        device=args.device,
+        policy_kwargs={"net_arch": list(args.net_arch)},
+        verbose=0,
     )
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
@@ -320,11 +346,21 @@ def train(args: Args) -> dict[str, Any]:
             self.next_eval = 0
 
         def run_eval(self) -> None:
-            res = evaluate(self.model, args.env_id, eval_assets, args.eval_episodes,
-                           category=args.category, control_mode=args.control_mode,
-                           max_episode_steps=args.max_episode_steps)
-            row = {"timesteps": self.num_timesteps, "wall_seconds": round(time.time() - t0, 2),
-                   "success_rate": res["success_rate"], "mean_return": res["mean_return"]}
+            res = evaluate(
+                self.model,
+                args.env_id,
+                eval_assets,
+                args.eval_episodes,
+                category=args.category,
+                control_mode=args.control_mode,
+                max_episode_steps=args.max_episode_steps,
+            )
+            row = {
+                "timesteps": self.num_timesteps,
+                "wall_seconds": round(time.time() - t0, 2),
+                "success_rate": res["success_rate"],
+                "mean_return": res["mean_return"],
+            }
             history.append(row)
             self.logger.record("eval/success_rate", res["success_rate"])
             self.logger.record("eval/return", res["mean_return"])
@@ -354,9 +390,13 @@ def train(args: Args) -> dict[str, Any]:
     finally:
         venv.close()
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
-    return {"policy": str(out / "policy.zip"), "progress_csv": str(out / "progress.csv"),
-            "eval_csv": str(eval_csv), "last_eval": history[-1] if history else None,
-            "seconds": time.time() - t0}
+    return {
+        "policy": str(out / "policy.zip"),
+        "progress_csv": str(out / "progress.csv"),
+        "eval_csv": str(eval_csv),
+        "last_eval": history[-1] if history else None,
+        "seconds": time.time() - t0,
+    }
 
 
 def parse_args(argv: list[str] | None = None) -> Args:

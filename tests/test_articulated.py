@@ -71,7 +71,8 @@ def test_round_trip_is_exact(tmp_path):
         assert np.array_equal(p.mesh.faces, q.mesh.faces)
         assert p.mesh.visual.kind == q.mesh.visual.kind
     assert np.array_equal(
-        obj.part("drawer_0").mesh.visual.vertex_colors, back.part("drawer_0").mesh.visual.vertex_colors
+        obj.part("drawer_0").mesh.visual.vertex_colors,
+        back.part("drawer_0").mesh.visual.vertex_colors,
     )
     d0, d1 = obj.part("door_0").mesh.visual, back.part("door_0").mesh.visual
     assert np.array_equal(d0.uv, d1.uv)
@@ -134,7 +135,9 @@ def test_load_errors_name_file_and_field(tmp_path):
     bad = json.loads(json.dumps(meta))
     bad["parts"][1]["joint"]["axis"] = [0, 0, 3]
     (d / "object.json").write_text(json.dumps(bad))
-    with pytest.raises(ObjectModelError, match=r"parts\[1\] \(drawer_0\)\.joint\.axis: must be a unit"):
+    with pytest.raises(
+        ObjectModelError, match=r"parts\[1\] \(drawer_0\)\.joint\.axis: must be a unit"
+    ):
         load_bundle(d)
 
     bad = json.loads(json.dumps(meta))

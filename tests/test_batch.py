@@ -90,8 +90,20 @@ def test_killed_run_resumes_without_losing_or_half_making_anything(tmp_path):
     images = _copy_examples(tmp_path / "in")
     n = len(list(images.glob("*.mask.png")))
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "asset_pipeline.cli", "convert", str(images), "--out", str(out),
-           "--generator", "retrieval", "--no-validate", "--no-preview", "--quiet"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "asset_pipeline.cli",
+        "convert",
+        str(images),
+        "--out",
+        str(out),
+        "--generator",
+        "retrieval",
+        "--no-validate",
+        "--no-preview",
+        "--quiet",
+    ]
     proc = subprocess.Popen(cmd, start_new_session=True)
     deadline = time.time() + 240
     done: dict[str, str] = {}
@@ -135,15 +147,28 @@ def test_ray_executor_against_a_local_ray_instance(tmp_path):
     # Ray's unix sockets need a short path: pytest's tmp_path is too long.
     ray_tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")
     subprocess.run(
-        [str(ray_bin), "start", "--head", f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
-         f"--temp-dir={ray_tmp}"],
-        check=True, env=env, capture_output=True, timeout=180,
+        [
+            str(ray_bin),
+            "start",
+            "--head",
+            f"--port={port}",
+            "--num-cpus=2",
+            "--include-dashboard=false",
+            f"--temp-dir={ray_tmp}",
+        ],
+        check=True,
+        env=env,
+        capture_output=True,
+        timeout=180,
     )
     try:
         images = _copy_examples(tmp_path / "in", ["microwave_t0000001", "refrigerator_t0000001"])
         out = tmp_path / "out"
         summary = run_convert(images, out, FAST, executor="ray", ray_address=f"127.0.0.1:{port}")
-        assert sorted(r.id for r in summary.results) == ["microwave_t0000001", "refrigerator_t0000001"]
+        assert sorted(r.id for r in summary.results) == [
+            "microwave_t0000001",
+            "refrigerator_t0000001",
+        ]
         assert set(_assets(out).values()) == {"ok"}
         assert (out / "microwave_t0000001" / "model.urdf").is_file()
     finally:

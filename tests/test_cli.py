@@ -30,7 +30,9 @@ def test_sample_unknown_category_is_a_clear_error(tmp_path):
 
 
 def test_sample_build_validate_and_bad_bundles(tmp_path):
-    r = runner.invoke(app, ["sample", "-c", "microwave", "--n", "2", "--seed", "5", "--out", str(tmp_path)])
+    r = runner.invoke(
+        app, ["sample", "-c", "microwave", "--n", "2", "--seed", "5", "--out", str(tmp_path)]
+    )
     assert r.exit_code == 0, r.output
     dirs = sorted(p for p in tmp_path.iterdir())
     assert [d.name for d in dirs] == ["microwave_s0000005", "microwave_s0000006"]
@@ -73,8 +75,18 @@ def test_sample_build_validate_and_bad_bundles(tmp_path):
 def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
     out = tmp_path / "out"
     r = runner.invoke(
-        app, ["convert", str(EXAMPLES), "--out", str(out), "--generator", "retrieval",
-              "--quiet", "--log-json", str(tmp_path / "log.jsonl")],
+        app,
+        [
+            "convert",
+            str(EXAMPLES),
+            "--out",
+            str(out),
+            "--generator",
+            "retrieval",
+            "--quiet",
+            "--log-json",
+            str(tmp_path / "log.jsonl"),
+        ],
     )
     assert r.exit_code == 0, r.output
     names = sorted(p.name.split(".")[0] for p in EXAMPLES.glob("*.mask.png"))

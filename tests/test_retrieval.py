@@ -93,9 +93,14 @@ def _library(embeds, counts, layouts) -> RetrievalLibrary:
     for i, lo in enumerate(layouts):
         lay[i, : len(lo)] = lo
     return RetrievalLibrary(
-        categories=np.array(["cabinet"] * n), seeds=np.arange(n), splits=np.array(["train"] * n),
-        embed_crop=np.stack(embeds), embed_full=np.stack(embeds), layouts=lay,
-        part_counts=np.array(counts, np.int16), aspects=np.ones(n, np.float32),
+        categories=np.array(["cabinet"] * n),
+        seeds=np.arange(n),
+        splits=np.array(["train"] * n),
+        embed_crop=np.stack(embeds),
+        embed_full=np.stack(embeds),
+        layouts=lay,
+        part_counts=np.array(counts, np.int16),
+        aspects=np.ones(n, np.float32),
     )
 
 

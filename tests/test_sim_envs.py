@@ -18,35 +18,44 @@ def _box(size: list[float], xyz: list[float]) -> str:
     return f"<visual>{geom}</visual><collision>{geom}</collision>"
 
 
-def write_box_cabinet(folder: Path, joint_type: str = "prismatic", aid: str = "fixture_0",
-                      category: str = "cabinet") -> Path:
+def write_box_cabinet(
+    folder: Path, joint_type: str = "prismatic", aid: str = "fixture_0", category: str = "cabinet"
+) -> Path:
     """A minimal hand-written built asset (asset.json + model.urdf): a box carcass with
     one drawer (prismatic) or one door hinged on its left edge (revolute), a bar handle."""
     folder.mkdir(parents=True, exist_ok=True)
     W, D, H, t = 0.5, 0.4, 0.6, 0.02
-    base = "".join([
-        _box([D, W, t], [0, 0, t / 2]), _box([D, W, t], [0, 0, H - t / 2]),
-        _box([D, t, H], [0, -W / 2 + t / 2, H / 2]), _box([D, t, H], [0, W / 2 - t / 2, H / 2]),
-        _box([t, W, H], [-D / 2 + t / 2, 0, H / 2]),
-    ])
+    base = "".join(
+        [
+            _box([D, W, t], [0, 0, t / 2]),
+            _box([D, W, t], [0, 0, H - t / 2]),
+            _box([D, t, H], [0, -W / 2 + t / 2, H / 2]),
+            _box([D, t, H], [0, W / 2 - t / 2, H / 2]),
+            _box([t, W, H], [-D / 2 + t / 2, 0, H / 2]),
+        ]
+    )
     if joint_type == "prismatic":
         name, origin, axis, upper = "drawer_0", [0.0, 0.0, 0.0], [1, 0, 0], 0.3
-        geom = "".join([
-            _box([0.02, W - 0.05, H - 0.05], [D / 2 - 0.01, 0, H / 2]),
-            _box([D - 0.06, W - 0.08, 0.01], [0.0, 0, 0.06]),
-            _box([0.02, 0.12, 0.015], [D / 2 + 0.04, 0, H * 0.75]),
-            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, -0.055, H * 0.75]),
-            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, 0.055, H * 0.75]),
-        ])
+        geom = "".join(
+            [
+                _box([0.02, W - 0.05, H - 0.05], [D / 2 - 0.01, 0, H / 2]),
+                _box([D - 0.06, W - 0.08, 0.01], [0.0, 0, 0.06]),
+                _box([0.02, 0.12, 0.015], [D / 2 + 0.04, 0, H * 0.75]),
+                _box([0.04, 0.015, 0.015], [D / 2 + 0.02, -0.055, H * 0.75]),
+                _box([0.04, 0.015, 0.015], [D / 2 + 0.02, 0.055, H * 0.75]),
+            ]
+        )
         handle_link, handle_axis = [D / 2 + 0.04, 0.0, H * 0.75], [0, 1, 0]
     else:
         name, origin, axis, upper = "door_0", [D / 2, W / 2, 0.0], [0, 0, 1], 1.57
-        geom = "".join([
-            _box([0.02, W - 0.01, H - 0.01], [0.01, -W / 2, H / 2]),
-            _box([0.02, 0.015, 0.14], [0.06, -W + 0.06, H / 2]),
-            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 + 0.05]),
-            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 - 0.05]),
-        ])
+        geom = "".join(
+            [
+                _box([0.02, W - 0.01, H - 0.01], [0.01, -W / 2, H / 2]),
+                _box([0.02, 0.015, 0.14], [0.06, -W + 0.06, H / 2]),
+                _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 + 0.05]),
+                _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 - 0.05]),
+            ]
+        )
         handle_link, handle_axis = [0.06, -W + 0.06, H / 2], [0, 0, 1]
     inertia = '<inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0" iyz="0"/>'
     urdf = f"""<?xml version="1.0"?>
@@ -54,20 +63,40 @@ def write_box_cabinet(folder: Path, joint_type: str = "prismatic", aid: str = "f
   <link name="base"><inertial><mass value="10"/>{inertia}</inertial>{base}</link>
   <link name="{name}"><inertial><mass value="2"/>{inertia}</inertial>{geom}</link>
   <joint name="joint_{name}" type="{joint_type}">
-    <parent link="base"/><child link="{name}"/><origin xyz="{' '.join(map(str, origin))}"/>
-    <axis xyz="{' '.join(map(str, axis))}"/><limit lower="0" upper="{upper}" effort="100" velocity="1"/>
+    <parent link="base"/><child link="{name}"/><origin xyz="{" ".join(map(str, origin))}"/>
+    <axis xyz="{" ".join(map(str, axis))}"/><limit lower="0" upper="{upper}" effort="100" velocity="1"/>
     <dynamics damping="1.0" friction="0.05"/>
   </joint>
 </robot>"""
     (folder / "model.urdf").write_text(urdf)
     meta = {
-        "schema": "pact.asset", "version": 1, "id": aid, "category": category, "metric_scale": 1.0,
+        "schema": "pact.asset",
+        "version": 1,
+        "id": aid,
+        "category": category,
+        "metric_scale": 1.0,
         "bounds": [[-D / 2, -W / 2, 0], [D / 2, W / 2, H]],
         "links": [{"name": "base", "semantic": "base"}, {"name": name, "semantic": name[:-2]}],
-        "joints": [{"name": f"joint_{name}", "parent": "base", "child": name, "type": joint_type,
-                    "origin": origin, "axis": axis, "lower": 0.0, "upper": upper}],
-        "handles": {name: {"position": [h + o for h, o in zip(handle_link, origin, strict=True)],
-                           "position_link": handle_link, "axis": handle_axis, "kind": "bar"}},
+        "joints": [
+            {
+                "name": f"joint_{name}",
+                "parent": "base",
+                "child": name,
+                "type": joint_type,
+                "origin": origin,
+                "axis": axis,
+                "lower": 0.0,
+                "upper": upper,
+            }
+        ],
+        "handles": {
+            name: {
+                "position": [h + o for h, o in zip(handle_link, origin, strict=True)],
+                "position_link": handle_link,
+                "axis": handle_axis,
+                "kind": "bar",
+            }
+        },
     }
     (folder / "asset.json").write_text(json.dumps(meta))
     return folder
@@ -88,7 +117,11 @@ def test_read_asset_parts_and_handles(asset_dir: Path) -> None:
     rec = read_asset(asset_dir / "cab_door")
     assert rec.id == "cab_door" and rec.category == "cabinet"
     (part,) = rec.parts
-    assert part.name == "door_0" and part.joint_type == "revolute" and part.joint_name == "joint_door_0"
+    assert (
+        part.name == "door_0"
+        and part.joint_type == "revolute"
+        and part.joint_name == "joint_door_0"
+    )
     assert part.range == pytest.approx(1.57)
     assert part.handle_object[0] == pytest.approx(part.handle_link[0] + 0.2)
 
@@ -105,19 +138,26 @@ def test_folder_source_filters_and_skips_failed(asset_dir: Path) -> None:
 def test_catalog_source(asset_dir: Path) -> None:
     db = asset_dir / "registry.sqlite"
     con = sqlite3.connect(db)
-    con.execute("CREATE TABLE assets (id TEXT, path TEXT, category TEXT, status TEXT, joint_types TEXT)")
-    con.executemany("INSERT INTO assets VALUES (?, ?, ?, ?, ?)", [
-        ("cab_drawer", "cab_drawer", "cabinet", "passed", "prismatic"),
-        ("cab_door", str(asset_dir / "cab_door"), "cabinet", "repaired", '["revolute"]'),
-        ("mw_door", "mw_door", "microwave", "passed", "revolute"),
-        ("bad", "bad", "cabinet", "failed", "prismatic"),
-    ])
+    con.execute(
+        "CREATE TABLE assets (id TEXT, path TEXT, category TEXT, status TEXT, joint_types TEXT)"
+    )
+    con.executemany(
+        "INSERT INTO assets VALUES (?, ?, ?, ?, ?)",
+        [
+            ("cab_drawer", "cab_drawer", "cabinet", "passed", "prismatic"),
+            ("cab_door", str(asset_dir / "cab_door"), "cabinet", "repaired", '["revolute"]'),
+            ("mw_door", "mw_door", "microwave", "passed", "revolute"),
+            ("bad", "bad", "cabinet", "failed", "prismatic"),
+        ],
+    )
     con.commit()
     con.close()
     src = open_source(db)
     assert isinstance(src, CatalogSource)
     assert [r.id for r in src] == ["cab_door", "cab_drawer", "mw_door"]
-    assert [r.id for r in open_source(db, category="cabinet", joint_type="revolute")] == ["cab_door"]
+    assert [r.id for r in open_source(db, category="cabinet", joint_type="revolute")] == [
+        "cab_door"
+    ]
 
 
 def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
@@ -128,8 +168,12 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
     from asset_pipeline.sim_options import DEFAULT_SIM_OPTIONS
     from sim_envs.scene import count_collision_shapes
 
-    env = gym.make("OpenDrawer-v0", assets=asset_dir / "cab_drawer", sim_backend="physx_cpu",
-                   render_backend="none")
+    env = gym.make(
+        "OpenDrawer-v0",
+        assets=asset_dir / "cab_drawer",
+        sim_backend="physx_cpu",
+        render_backend="none",
+    )
     try:
         env.reset(seed=0)
         u = env.unwrapped
@@ -140,7 +184,9 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
         assert counts[next(k for k in counts if k.endswith("base"))] == 5
         assert counts[next(k for k in counts if k.endswith("drawer_0"))] == 5
         shape = obj.get_links()[1].collision_shapes[0]
-        assert shape.physical_material.static_friction == pytest.approx(DEFAULT_SIM_OPTIONS.static_friction)
+        assert shape.physical_material.static_friction == pytest.approx(
+            DEFAULT_SIM_OPTIONS.static_friction
+        )
         # the front of the object faces the robot: the robot base is on the +x side
         assert float(u.agent.robot.pose.p[0, 0]) > 0.5
         # a fixed base does not move under gravity

@@ -43,8 +43,14 @@ def test_check_env(procedural_assets: Path) -> None:
 
     # constructed directly: the TimeLimitWrapper gym.make adds cannot be re-created
     # from its spec, which the checker tries
-    env = CPUGymWrapper(OpenDrawerEnv(assets=procedural_assets, obs_mode="state",
-                                      sim_backend="physx_cpu", render_backend="none"))
+    env = CPUGymWrapper(
+        OpenDrawerEnv(
+            assets=procedural_assets,
+            obs_mode="state",
+            sim_backend="physx_cpu",
+            render_backend="none",
+        )
+    )
     try:
         check_env(env, skip_render_check=True)
     finally:
@@ -91,7 +97,9 @@ def test_success_flag_follows_the_target_joint(procedural_assets: Path, env_id: 
 def test_dense_reward_rises_as_gripper_approaches(procedural_assets: Path) -> None:
     from tasks.solver import ScriptedSolver
 
-    env = _make("OpenDrawer-v0", procedural_assets, control_mode="pd_ee_delta_pose", reward_mode="dense")
+    env = _make(
+        "OpenDrawer-v0", procedural_assets, control_mode="pd_ee_delta_pose", reward_mode="dense"
+    )
     try:
         env.reset(seed=1)
         u = env.unwrapped
@@ -130,9 +138,19 @@ def test_scripted_solver_opens_procedural_drawer_and_door(procedural_assets: Pat
 def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> None:
     from tasks.train import Args, train
 
-    args = Args(env_id="OpenDrawer-v0", assets=str(procedural_assets), num_envs=2,
-                total_timesteps=2000, n_steps=250, batch_size=250, n_epochs=2,
-                max_episode_steps=50, eval_every=0, eval_episodes=1, out_dir=str(tmp_path / "run"))
+    args = Args(
+        env_id="OpenDrawer-v0",
+        assets=str(procedural_assets),
+        num_envs=2,
+        total_timesteps=2000,
+        n_steps=250,
+        batch_size=250,
+        n_epochs=2,
+        max_episode_steps=50,
+        eval_every=0,
+        eval_episodes=1,
+        out_dir=str(tmp_path / "run"),
+    )
     out = train(args)
     run = tmp_path / "run"
     assert (run / "policy.zip").is_file()

@@ -42,12 +42,16 @@ def write_test_split(
             seed = seed0 + k
             oid = object_id(cat, seed, "test")
             ids.append(oid)
-            if (out / "gt" / oid / "object.json").is_file() and (out / "images" / f"{oid}.json").is_file():
+            if (out / "gt" / oid / "object.json").is_file() and (
+                out / "images" / f"{oid}.json"
+            ).is_file():
                 continue  # resumable
             obj = sample_object(cat, seed, split="test")
             rng = np.random.default_rng([seed, sum(map(ord, cat))])
             with ObjectRenderer(obj, image_size, rng) as renderer:
-                rv = renderer.render(sample_view(obj, rng, image_size, ViewConfig(open_fraction=0.0)))
+                rv = renderer.render(
+                    sample_view(obj, rng, image_size, ViewConfig(open_fraction=0.0))
+                )
             for name, arr in ((f"{oid}.png", rv.rgb), (f"{oid}.mask.png", rv.mask)):
                 buf = BytesIO()
                 Image.fromarray(arr).save(buf, format="PNG")
