@@ -271,15 +271,20 @@ def _local_results(
                     try:
                         yield fut.result()
                     except Exception as e:  # a worker process died
-                        yield ItemResult(
-                            id=item.name,
-                            name=item.name,
-                            status="failed",
-                            reason=f"worker crashed: {type(e).__name__}: {e}",
-                            source_image=str(item.image_path),
-                            source_hash=item.input_hash,
-                            generator=settings.generator,
-                        )
+                        yield _lost(item, settings, f"worker crashed: {type(e).__name__}: {e}")
+
+
+def _lost(item: InputItem, settings: ConvertSettings, reason: str) -> ItemResult:
+    """The result of an item whose worker died before it could report."""
+    return ItemResult(
+        id=_asset_id(item),
+        name=item.name,
+        status="failed",
+        reason=reason,
+        source_image=str(item.image_path),
+        source_hash=item.input_hash,
+        generator=settings.generator,
+    )
 
 
 class _DictReporter:
@@ -306,16 +311,8 @@ def _ray_results(
             item = refs.pop(ref)
             try:
                 yield ray.get(ref)
-            except Exception as e:
-                yield ItemResult(
-                    id=item.name,
-                    name=item.name,
-                    status="failed",
-                    reason=f"ray task failed: {type(e).__name__}: {e}",
-                    source_image=str(item.image_path),
-                    source_hash=item.input_hash,
-                    generator=settings.generator,
-                )
+            except Exception as e:  # the task or its worker died
+                yield _lost(item, settings, f"ray task failed: {type(e).__name__}: {e}")
 
 
 def run_convert(

@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageOps
 
+from generator.procedural import CATEGORIES as PROCEDURAL_CATEGORIES
+
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -32,16 +34,7 @@ MASK_SUFFIX = ".mask.png"
 HINTS_SUFFIX = ".json"
 
 #: Categories a hint may name ("unknown" lets the generator decide).
-CATEGORIES = (
-    "cabinet",
-    "desk",
-    "microwave",
-    "oven",
-    "dishwasher",
-    "refrigerator",
-    "washing_machine",
-    "unknown",
-)
+CATEGORIES = (*PROCEDURAL_CATEGORIES, "unknown")
 
 #: Largest part id a mask may hold: ids are slot + 1 and there are at most 16 slots
 #: (docs/dataset.md, ``max_parts``), so ids run 0 (background), 1 (base), 2..16.

@@ -68,7 +68,8 @@ def load_asset(
     builder.initial_pose = initial_pose or sapien.Pose()
     art = builder.build(name=name or record.id)
     for obj in art._objs:
-        apply_sim_options(obj, options)
+        # the URDF's joint friction: SAPIEN's builder drops it (PhysX default 0.05 otherwise)
+        apply_sim_options(obj, options, urdf=record.urdf)
     return art
 
 

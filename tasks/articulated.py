@@ -9,17 +9,21 @@ and ``physx_cuda`` (many envs in one process):
   same seeds; the per-env articulations are merged into one view
   (``Articulation.merge``) and the per-env target links into one ``Link`` view, so
   qpos, poses and velocities are read as (num_envs, ...) tensors;
-- the target part is fixed per reconfiguration; with one env the scene is rebuilt
-  on every reset by default (``reconfiguration_freq=1``: a new asset and part each
-  episode), with many envs never (``0``: each env keeps its asset; pass
-  ``reconfiguration_freq=k`` to resample every k resets).
+- the assets are fixed per reconfiguration; with one env the scene is rebuilt on
+  every reset by default (``reconfiguration_freq=1``: a new asset each episode),
+  with many envs never (``0``: each env keeps its asset). Reloading an asset costs
+  0.3-0.5 s on CPU, more than a 100-step episode, so ``reconfiguration_freq=k``
+  reloads only every k resets; the resets in between re-sample the target part
+  among the loaded asset's parts (per-part data is tabulated at load time) and the
+  object, robot and joint poses.
 
 Placement: the object stands on the floor at the origin with its front (+x of the
-object frame) toward the robot, turned by a small random yaw. The robot's base
-faces the object's front and is mounted (height included) so that its ready pose
-puts the gripper ``handle_standoff`` metres in front of the target handle, plus a
-little noise: every asset, from a low drawer to a fridge door, starts equally
-reachable.
+object frame) toward the robot, turned by a small random yaw. The robot's base is
+placed per target part (:mod:`tasks.placement`): for a drawer it faces the front,
+its ready pose putting the gripper ``handle_standoff`` metres in front of the
+handle; for a door or lid it stands where the whole opening path of the handle is
+within comfortable reach and clear of the swept door (beside a side-hinged door,
+in front of and beside a bottom-hinged one). Plus a little noise.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from sim_envs.scene import (
     rotate_z,
     yaw_quat,
 )
+from tasks.placement import face_normal_link, robot_base_for_part
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +61,6 @@ log = logging.getLogger(__name__)
 # closing vertically (tcp y axis = world z): the start of every episode. The wrist joint
 # (index 6) turns by pi/2 for vertical handle bars so that the fingers close across them.
 READY_QPOS = np.array([0.0, -0.2, 0.0, -1.8, 0.0, 3.171, -0.785, 0.04, 0.04], dtype=np.float32)
-READY_TCP = (0.615, 0.0, 0.818)  # tcp position in the robot base frame at READY_QPOS (FK)
 VERTICAL_BAR_WRIST = 0.785
 
 
@@ -161,14 +165,11 @@ class ArticulatedPartEnv(BaseEnv):
     def _load_scene(self, options: dict) -> None:
         self.ground = build_ground(self.scene)
         configure_ground(self.ground, self.sim_options)
-        rng = self._batched_episode_rng
-        asset_idx = rng.randint(0, len(self.asset_records))
-        part_pick = rng.randint(0, 2**31)
+        asset_idx = self._batched_episode_rng.randint(0, len(self.asset_records))
         objects: list[Articulation] = []
-        links: list[Link] = []
         self.episode_assets: list[AssetRecord] = []
-        self.episode_parts: list[MovablePart] = []
-        dof_idx = []
+        self.candidate_parts: list[list[MovablePart]] = []  # per env: the parts to pick from
+        cand_links: list[list[Link]] = []
         for i in range(self.num_envs):
             rec = self.asset_records[int(asset_idx[i])]
             parts = rec.parts_of_type(self.joint_type)
@@ -178,36 +179,110 @@ class ArticulatedPartEnv(BaseEnv):
                     raise ValueError(
                         f"{rec.id}: no {self.joint_type} part named {self.target_part!r}"
                     )
-            part = parts[int(part_pick[i]) % len(parts)]
             art = load_asset(
                 self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options
             )
             self.remove_from_state_dict_registry(art)
             objects.append(art)
-            link = art.links_map[part.name]
-            links.append(link)
-            joint_names = [j.name for j in art.active_joints]
-            dof_idx.append(joint_names.index(part.joint_name))
+            cand_links.append([art.links_map[p.name] for p in parts])
             self.episode_assets.append(rec)
-            self.episode_parts.append(part)
+            self.candidate_parts.append(parts)
         self.object = Articulation.merge(objects, name="object")
         self.add_to_state_dict_registry(self.object)
-        self.target_link = Link.merge(links, name="target_link")
+        self._tabulate_parts(objects, cand_links)
 
-        def tensor(rows: list) -> torch.Tensor:
-            return torch.tensor(np.asarray(rows, dtype=np.float32), device=self.device)
+    def _tabulate_parts(self, objects: list[Articulation], cand_links: list[list[Link]]) -> None:
+        """Per env and candidate part (padded to the largest count): (N, P, ...) tensors."""
+        n_slots = max(len(c) for c in self.candidate_parts)
+        self._cand_links = cand_links
+        self.num_candidates = torch.tensor(
+            [len(c) for c in self.candidate_parts], device=self.device, dtype=torch.long
+        )
+        # slot k of env i is candidate k mod P_i; one merged Link view per slot
+        self._slot_links = [
+            Link.merge([links[k % len(links)] for links in cand_links], name=f"target_link_{k}")
+            for k in range(n_slots)
+        ]
+        rows: dict[str, list] = {k: [] for k in ("dof", "hl", "ho", "ha", "ja", "lo", "hi")}
+        rows.update(base=[], yaw=[], normal=[])
+        for i, parts in enumerate(self.candidate_parts):
+            joint_names = [j.name for j in objects[i].active_joints]
+            rec = self.episode_assets[i]
+            slot_parts = [parts[k % len(parts)] for k in range(n_slots)]
+            rows["dof"].append([joint_names.index(p.joint_name) for p in slot_parts])
+            rows["hl"].append([p.handle_link for p in slot_parts])
+            rows["ho"].append([p.handle_object for p in slot_parts])
+            rows["ha"].append([p.handle_axis for p in slot_parts])
+            rows["ja"].append([p.axis for p in slot_parts])
+            rows["lo"].append([p.lower for p in slot_parts])
+            rows["hi"].append([p.upper for p in slot_parts])
+            placements = [
+                robot_base_for_part(p, rec.bounds, self.handle_standoff) for p in slot_parts
+            ]
+            rows["base"].append([b for b, _ in placements])
+            rows["yaw"].append([y for _, y in placements])
+            rows["normal"].append([face_normal_link(p) for p in slot_parts])
 
-        parts = self.episode_parts
-        self.target_dof_idx = torch.tensor(dof_idx, device=self.device, dtype=torch.long)
-        self.handle_link_pos = tensor([p.handle_link for p in parts])  # (N, 3) link frame
-        self.handle_rest_pos = tensor([p.handle_object for p in parts])  # (N, 3) object frame
-        self.handle_axis_obj = tensor([p.handle_axis for p in parts])  # (N, 3)
-        self.joint_axis_obj = tensor([p.axis for p in parts])  # (N, 3)
-        self.qlow = tensor([p.lower for p in parts])  # (N,)
-        self.qhigh = tensor([p.upper for p in parts])  # (N,)
+        def tensor(v: list) -> torch.Tensor:
+            return torch.tensor(np.asarray(v, dtype=np.float32), device=self.device)
+
+        self._slot_dof_idx = torch.tensor(rows["dof"], device=self.device, dtype=torch.long)
+        self._slot_handle_link = tensor(rows["hl"])  # (N, P, 3) link frame
+        self._slot_handle_rest = tensor(rows["ho"])  # (N, P, 3) object frame
+        self._slot_handle_axis = tensor(rows["ha"])  # (N, P, 3)
+        self._slot_joint_axis = tensor(rows["ja"])  # (N, P, 3)
+        self._slot_qlow = tensor(rows["lo"])  # (N, P)
+        self._slot_qhigh = tensor(rows["hi"])  # (N, P)
+        self._slot_base = tensor(rows["base"])  # (N, P, 3) robot base, object frame
+        self._slot_base_yaw = tensor(rows["yaw"])  # (N, P)
+        self._slot_normal = tensor(rows["normal"])  # (N, P, 3) handle face normal, link frame
+        n = self.num_envs
+        self.part_slot = torch.zeros(n, device=self.device, dtype=torch.long)
+        self.episode_parts: list[MovablePart] = [c[0] for c in self.candidate_parts]
+        self.target_dof_idx = self._slot_dof_idx[:, 0].clone()
+        self.handle_link_pos = self._slot_handle_link[:, 0].clone()  # (N, 3) link frame
+        self.handle_rest_pos = self._slot_handle_rest[:, 0].clone()  # (N, 3) object frame
+        self.handle_axis_obj = self._slot_handle_axis[:, 0].clone()  # (N, 3)
+        self.handle_normal_link = self._slot_normal[:, 0].clone()  # (N, 3)
+        self.joint_axis_obj = self._slot_joint_axis[:, 0].clone()  # (N, 3)
+        self.qlow = self._slot_qlow[:, 0].clone()  # (N,)
+        self.qhigh = self._slot_qhigh[:, 0].clone()  # (N,)
         self.qrange = self.qhigh - self.qlow
-        self.start_fraction = torch.zeros(self.num_envs, device=self.device)
-        self.object_yaw = torch.zeros(self.num_envs, device=self.device)
+        self.start_fraction = torch.zeros(n, device=self.device)
+        self.object_yaw = torch.zeros(n, device=self.device)
+        self._merged_target: dict[tuple[int, ...], Link] = {}
+
+    def _select_parts(self, env_idx: torch.Tensor) -> None:
+        """Pick each env's target part for this episode and copy its row of the tables."""
+        slot = (torch.rand(len(env_idx)) * self.num_candidates[env_idx]).long()
+        slot = torch.minimum(slot, self.num_candidates[env_idx] - 1)
+        self.part_slot[env_idx] = slot
+        for name, table in (
+            ("target_dof_idx", self._slot_dof_idx),
+            ("handle_link_pos", self._slot_handle_link),
+            ("handle_rest_pos", self._slot_handle_rest),
+            ("handle_axis_obj", self._slot_handle_axis),
+            ("handle_normal_link", self._slot_normal),
+            ("joint_axis_obj", self._slot_joint_axis),
+            ("qlow", self._slot_qlow),
+            ("qhigh", self._slot_qhigh),
+        ):
+            getattr(self, name)[env_idx] = table[env_idx, slot]
+        self.qrange = self.qhigh - self.qlow
+        for i, k in zip(env_idx.tolist(), slot.tolist(), strict=True):
+            self.episode_parts[i] = self.candidate_parts[i][k]
+
+    @property
+    def target_link(self) -> Link:
+        """A Link view of each env's current target part (one view per slot combination)."""
+        slots = tuple(self.part_slot.tolist())
+        if len(set(slots)) == 1:
+            return self._slot_links[slots[0]]
+        if slots not in self._merged_target:
+            self._merged_target[slots] = Link.merge(
+                [self._cand_links[i][k] for i, k in enumerate(slots)], name="target_link"
+            )
+        return self._merged_target[slots]
 
     # ------------------------------------------------------------------ episodes
     def reset(self, seed: int | list[int] | None = None, options: dict | None = None):
@@ -220,6 +295,8 @@ class ArticulatedPartEnv(BaseEnv):
     def _initialize_episode(self, env_idx: torch.Tensor, options: dict) -> None:
         with torch.device(self.device):
             b = len(env_idx)
+            self._select_parts(env_idx)
+            slot = self.part_slot[env_idx]
             # object: on the floor at the origin, front (+x) toward the robot, small yaw
             yaw = (torch.rand(b) * 2 - 1) * self.object_yaw_noise
             pos = torch.zeros((b, 3))
@@ -239,13 +316,11 @@ class ArticulatedPartEnv(BaseEnv):
             self.object.set_qvel(torch.zeros_like(qpos))
             self.start_fraction[env_idx] = frac
 
-            # robot: facing the object's front, ready pose in front of the closed handle
-            handle = pos + rotate_z(self.handle_rest_pos[env_idx], yaw)
-            front = rotate_z(torch.tensor([[1.0, 0.0, 0.0]]).expand(b, 3), yaw)
-            robot_yaw = yaw + torch.pi + (torch.rand(b) * 2 - 1) * 0.05
-            tcp_goal = handle + front * self.handle_standoff
-            tcp_goal = tcp_goal + (torch.rand((b, 3)) * 2 - 1) * self.robot_pos_noise
-            base = tcp_goal - rotate_z(torch.tensor([READY_TCP]).expand(b, 3), robot_yaw)
+            # robot: where the target part's opening path is in reach (tasks.placement)
+            base = pos + rotate_z(self._slot_base[env_idx, slot], yaw)
+            base = base + (torch.rand((b, 3)) * 2 - 1) * self.robot_pos_noise
+            robot_yaw = yaw + self._slot_base_yaw[env_idx, slot]
+            robot_yaw = robot_yaw + (torch.rand(b) * 2 - 1) * 0.05
             self.agent.robot.set_pose(Pose.create_from_pq(p=base, q=yaw_quat(robot_yaw)))
             rq = torch.tensor(READY_QPOS).expand(b, -1).clone()
             vertical_bar = self.handle_axis_obj[env_idx, 2].abs() > 0.7

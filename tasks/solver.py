@@ -29,6 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sim_envs.catalog import AssetRecord, ListSource, open_source
+from tasks.placement import PUSH_DEPTH, PUSH_RADIUS, hinge_frame_link, push_point_link
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,12 @@ class SolverConfig:
     stall_steps: int = 10
     max_steps: int = 300
     hold_steps: int = 15
+    recess_depth: float = 0.008  # how far past a recessed handle's point the closed fingers go
+    release_fraction: float = 0.08  # a bottom-hinged door this far open falls open if let go
+    release_steps: int = 60
+    push_min_angle: float = 0.25  # rad a door must be ajar before it can be pushed open
+    push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
+    trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
 
 
 @dataclass
@@ -152,51 +159,149 @@ class ScriptedSolver:
         dr = float(np.linalg.norm(Rotation.from_matrix(goal[:3, :3] @ cur[:3, :3].T).as_rotvec()))
         return dp, dr
 
+    def _finger_gap(self) -> float:
+        return float(_np(self.u.agent.robot.get_qpos())[0, 7:9].sum())
+
+    def _arm_limit_margin(self) -> float:
+        """Smallest distance (rad) of an arm joint to its limit."""
+        q = _np(self.u.agent.robot.get_qpos())[0, :7]
+        lim = _np(self.u.agent.robot.get_qlimits())[0, :7]
+        return float(np.min(np.minimum(q - lim[:, 0], lim[:, 1] - q)))
+
+    def _carried(self, point_link: np.ndarray) -> np.ndarray:
+        """World position of a point fixed in the target link's frame."""
+        L = self._link()
+        return L[:3, :3] @ point_link + L[:3, 3]
+
+    def _go(self, goal_fn, gripper: float, do, tol: float = 0.02, budget: int = 30) -> bool:
+        """Step toward ``goal_fn()`` (a (4, 4) pose, re-evaluated every step) until within ``tol``."""
+        for _ in range(budget):
+            goal = goal_fn()
+            if np.linalg.norm(goal[:3, 3] - self._tcp()[:3, 3]) < tol:
+                return True
+            do(self._action(goal, gripper))
+        return False
+
+    def _push_open(self, part: Any, target: float, axis: np.ndarray, do, frac) -> None:
+        """Let go of the handle, go round the free edge and push the inner face open."""
+        cfg = self.cfg
+        _, radial_l, normal_l, radius = hinge_frame_link(part)
+        # 1. open and back off along the face normal
+        R0 = self._tcp()[:3, :3]
+
+        def pose(p: np.ndarray, R: np.ndarray) -> np.ndarray:
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = R, p
+            return T
+
+        L = self._link()
+        out = self._tcp()[:3, 3] + L[:3, :3] @ normal_l * 0.1
+        self._go(lambda: pose(out, R0), GRIPPER_OPEN, do, budget=15)
+        # 2. the fingers point from beyond the free edge toward the hinge, closing along
+        # the axis (a flat paddle against the inner face)
+        edge = 1.0 + cfg.push_edge_clearance / radius
+
+        def insert_rot() -> np.ndarray:
+            L = self._link()
+            z = -(L[:3, :3] @ radial_l)
+            y = L[:3, :3] @ np.cross(normal_l, radial_l)
+            return np.stack([np.cross(y, z), y, z], axis=1)
+
+        Rp = insert_rot()
+        for rad, depth in ((edge, -0.08), (edge, PUSH_DEPTH), (PUSH_RADIUS, PUSH_DEPTH)):
+            pt = push_point_link(part, rad, depth)
+            self._go(lambda pt=pt: pose(self._carried(pt), Rp), GRIPPER_CLOSED, do, budget=25)
+        # 3. push: the pressing point carried a little further along the hinge circle
+        inner = push_point_link(part, PUSH_RADIUS, PUSH_DEPTH)
+        history: list[float] = []
+        while True:
+            f = frac()
+            if f >= target or self._step >= cfg.max_steps - cfg.hold_steps:
+                break
+            history.append(f)
+            if len(history) > 2 * cfg.stall_steps and f - history[-2 * cfg.stall_steps] < 0.005:
+                break
+            L = self._link()
+            dq = min(cfg.revolute_speed, (target - f) * part.range + 0.01)
+            p = (joint_motion("revolute", axis, L[:3, 3], dq) @ L @ np.append(inner, 1.0))[:3]
+            do(self._action(pose(p, Rp), GRIPPER_CLOSED))
+
+    def _gravity_torque(self) -> float:
+        """Gravity's torque (N m) on the target part about its joint axis, positive = opening."""
+        link = self.u.target_link._objs[0]
+        L = self._link()
+        com = L[:3, :3] @ np.asarray(link.cmass_local_pose.p, dtype=float)  # from the hinge
+        axis = _np(self.u.joint_axis_world())[0].astype(float)
+        weight = np.array([0.0, 0.0, -9.81 * float(link.mass)])
+        return float(np.cross(com, weight) @ axis)
+
     # ---- run
     def solve(self) -> SolveResult:
         """Run one episode from the env's current state (call ``env.reset`` first)."""
         u, cfg = self.u, self.cfg
         part = u.episode_parts[0]
         closing = bool(u.closing)
+        recessed = part.handle_kind in ("recessed", "none")
+        # a recess is entered with closed fingers that then spread against its walls
+        g_reach = GRIPPER_CLOSED if recessed else GRIPPER_OPEN
+        g_hold = GRIPPER_OPEN if recessed else GRIPPER_CLOSED
         step = 0
         info: dict[str, Any] = {}
+        self.trace: list[dict[str, Any]] = []
+        phase = "pregrasp"
+
+        def frac() -> float:
+            return float(_np(u.open_fraction())[0])
 
         def do(action: np.ndarray) -> dict:
             nonlocal step, info
             _, _, _, _, info = u.step(action[None])
             step += 1
+            self._step = step
+            if cfg.trace:
+                self.trace.append(
+                    {
+                        "step": step,
+                        "phase": phase,
+                        "fraction": round(frac(), 4),
+                        "tcp_handle": round(float(_np(info["tcp_to_handle_dist"])[0]), 4),
+                        "finger_gap": round(self._finger_gap(), 4),
+                        "arm_limit_margin": round(self._arm_limit_margin(), 3),
+                    }
+                )
             return info
-
-        def frac() -> float:
-            return float(_np(u.open_fraction())[0])
 
         handle_link = _np(u.handle_link_pos)[0].astype(float)
         handle_axis_link = _np(u.handle_axis_obj)[0].astype(float)
+        normal_link = _np(u.handle_normal_link)[0].astype(float)
+        depth = cfg.recess_depth if recessed else cfg.grasp_depth
 
         def grasp_goal(offset: float) -> np.ndarray:
             L = self._link()
-            approach = -L[:3, 0]  # into the part's front face
+            approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
             center = L[:3, :3] @ handle_link + L[:3, 3]
             T = grasp_frame(approach, L[:3, :3] @ handle_axis_link, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
 
         # 1-2. pre-grasp then approach
-        for _phase, offset, tol, budget in (
-            ("pregrasp", cfg.pregrasp_distance, 0.015, 60),
-            ("approach", -cfg.grasp_depth, 0.006, 40),
+        for name, offset, tol, budget in (
+            ("pregrasp", cfg.pregrasp_distance, 0.015, 80),
+            ("approach", -depth, 0.006, 40),
         ):
+            phase = name
             goal = grasp_goal(offset)
             for _ in range(budget):
                 dp, dr = self._errors(goal)
                 if dp < tol and dr < 0.05:
                     break
-                do(self._action(goal, GRIPPER_OPEN))
+                do(self._action(goal, g_reach))
                 goal = grasp_goal(offset)
-        # 3. grasp
-        goal = grasp_goal(-cfg.grasp_depth)
+        # 3. grasp (or spread in the recess)
+        phase = "grasp"
+        goal = grasp_goal(-depth)
         for _ in range(10):
-            do(self._action(goal, GRIPPER_CLOSED))
+            do(self._action(goal, g_hold))
         tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
         # 4. move along the joint
         target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
@@ -217,12 +322,30 @@ class ScriptedSolver:
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)
             goal = joint_motion(part.joint_type, axis_obj, L[:3, 3], dq) @ L @ tcp_in_link
-            do(self._action(goal, GRIPPER_CLOSED))
-        # 5. hold still (keep the grasp) until the part settles
+            do(self._action(goal, g_hold))
+        # 4b. not there yet: a door hanging from a bottom hinge, once ajar, falls open
+        # under its own weight when let go; any other door or lid is pushed open from
+        # inside (the gripper goes round its free edge and presses on its inner face)
+        g_final = g_hold
+        if not closing and part.joint_type == "revolute" and frac() < target:
+            if frac() >= cfg.release_fraction and self._gravity_torque() > 0.5:
+                phase = "release"
+                g_final = GRIPPER_OPEN
+                away = self._tcp()
+                away[:3, 3] -= away[:3, 2] * 0.08
+                for _ in range(cfg.release_steps):
+                    info = do(self._action(away, GRIPPER_OPEN))
+                    if bool(_np(info["success"])[0]):
+                        break
+            elif frac() * part.range >= cfg.push_min_angle:
+                phase = "push"
+                g_final = GRIPPER_CLOSED
+                self._push_open(part, target, axis_obj, do, frac)
+        # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
         phase = "hold"
         hold = self._tcp()
         for _ in range(cfg.hold_steps):
-            info = do(self._action(hold, GRIPPER_CLOSED))
+            info = do(self._action(hold, g_final))
             if bool(_np(info["success"])[0]):
                 break
         success = bool(_np(info.get("success", [False]))[0]) if info else False

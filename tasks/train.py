@@ -1,7 +1,8 @@
 """PPO (stable-baselines3) on the drawer / door tasks, CleanRL-style: read it top to bottom.
 
 CPU (default): ``num_envs`` single-env ManiSkill processes in a gymnasium
-``AsyncVectorEnv`` (one physx_cpu env per process, each reset loads a new asset),
+``AsyncVectorEnv`` (one physx_cpu env per process, a new asset loaded every
+``reconfiguration_freq`` episodes),
 adapted to SB3's VecEnv API by :func:`sb3_vec_env`. GPU: one ManiSkill env
 with ``num_envs`` sub-scenes on ``physx_cuda`` behind ManiSkill's SB3 wrapper.
 
@@ -44,6 +45,9 @@ class Args:
     control_mode: str = "pd_joint_delta_pos"
     reward_mode: str = "normalized_dense"
     max_episode_steps: int = 100
+    reconfiguration_freq: int = 10
+    """reload an asset every k episodes per env (1: every episode, slow on CPU where a
+    reload costs 0.3-0.5 s; 0: never); resets in between re-sample part and poses"""
     learning_rate: float = 3e-4
     n_steps: int = 200
     """rollout length per env"""
@@ -131,6 +135,7 @@ def _env_fn(args: Args, rank: int):
             control_mode=args.control_mode,
             reward_mode=args.reward_mode,
             max_episode_steps=args.max_episode_steps,
+            reconfiguration_freq=args.reconfiguration_freq,
         )
 
     return thunk
@@ -227,6 +232,7 @@ def make_train_env(args: Args):
         control_mode=args.control_mode,
         reward_mode=args.reward_mode,
         max_episode_steps=args.max_episode_steps,
+        reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
     )
     return ManiSkillSB3VectorEnv(env)
 

@@ -102,9 +102,7 @@ class SparseStructureVAE(nn.Module):
             dec += [ResBlock3d(ch[i], ch[i]) for _ in range(cfg.num_res_blocks)]
             if i > 0:
                 dec.append(Upsample3d(ch[i], ch[i - 1]))
-        head = (
-            nn.Conv3d(ch[0], 1, 3, padding=1) if s == 1 else nn.ConvTranspose3d(ch[0], 1, 2, 2)
-        )
+        head = nn.Conv3d(ch[0], 1, 3, padding=1) if s == 1 else nn.ConvTranspose3d(ch[0], 1, 2, 2)
         dec += [_norm(ch[0]), nn.SiLU(), head]
         self.decoder = nn.Sequential(*dec)
 

@@ -1,0 +1,161 @@
+"""Where the Panda stands for a target part: pure numpy geometry in the object frame.
+
+A drawer's handle moves straight out, so the robot stands in front of it (its ready
+gripper ``standoff`` metres in front of the handle). A door's or lid's handle moves on
+a circle about the hinge, up to a metre across for a fridge door, so the base is chosen
+by a small grid search: every handle point on the opening path (``lower`` to
+``lower + 0.9 * range``) within comfortable reach of the shoulder, the gripper able to
+face the handle along the path, and the base column clear of the object and of the
+volume the part sweeps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim_envs.catalog import MovablePart
+
+READY_TCP = np.array([0.615, 0.0, 0.818])  # tcp in the robot base frame at READY_QPOS (FK)
+SHOULDER_HEIGHT = 0.333  # panda_link2 above the base
+REACH = (0.35, 0.68)  # comfortable shoulder-to-tcp distances (m)
+BASE_CLEARANCE = 0.2  # base column radius plus margin (m)
+PATH_FRACTIONS = np.linspace(0.0, 0.9, 10)  # of the joint range
+
+
+def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix about the unit ``axis`` by ``angle`` (Rodrigues)."""
+    a = axis / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+def handle_path(part: MovablePart, fractions: np.ndarray = PATH_FRACTIONS) -> np.ndarray:
+    """(K, 3) object-frame handle positions at ``lower + f * range`` for each fraction f."""
+    h0 = np.asarray(part.handle_object, dtype=float)
+    axis = np.asarray(part.axis, dtype=float)
+    if part.joint_type == "prismatic":
+        return h0 + np.outer(np.asarray(fractions) * part.range, axis)
+    origin = np.asarray(part.origin, dtype=float)
+    out = []
+    for f in fractions:
+        # the rest pose is q = lower; rotate by the travel from there
+        out.append(origin + _rot(axis, f * part.range) @ (h0 - origin))
+    return np.asarray(out)
+
+
+def opening_normals(part: MovablePart, fractions: np.ndarray = PATH_FRACTIONS) -> np.ndarray:
+    """(K, 3) unit directions in which the handle moves as the part opens (its face normal)."""
+    axis = np.asarray(part.axis, dtype=float)
+    if part.joint_type == "prismatic":
+        return np.tile(axis / np.linalg.norm(axis), (len(fractions), 1))
+    path = handle_path(part, fractions)
+    r = path - np.asarray(part.origin, dtype=float)
+    t = np.cross(axis, r)
+    return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
+
+
+def face_normal_link(part: MovablePart) -> np.ndarray:
+    """(3,) unit outward normal of the face carrying the handle, in the link frame (closed pose)."""
+    return opening_normals(part, np.array([0.0]))[0]
+
+
+PUSH_DEPTH = 0.07  # behind the hinge plane (the part's front face) when pushing from inside
+PUSH_RADIUS = 0.85  # fraction of the handle's distance from the hinge where the pusher presses
+
+
+def hinge_frame_link(part: MovablePart) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Joint axis ``a``, radial ``r`` (hinge toward handle) and face normal ``n`` unit
+    vectors and the handle radius (m), in the link frame at the closed pose."""
+    a = np.asarray(part.axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    h = np.asarray(part.handle_link, dtype=float)
+    r_vec = h - a * (h @ a)
+    radius = float(np.linalg.norm(r_vec))
+    r = r_vec / max(radius, 1e-9)
+    return a, r, np.cross(a, r), radius
+
+
+def push_point_link(part: MovablePart, radial: float, depth: float) -> np.ndarray:
+    """(3,) link-frame point ``radial`` x handle radius from the hinge, at the handle's
+    height along the axis, ``depth`` metres behind the hinge plane (negative: in front)."""
+    a, r, n, radius = hinge_frame_link(part)
+    h = np.asarray(part.handle_link, dtype=float)
+    return a * (h @ a) + r * radial * radius - n * depth
+
+
+def _swept_points(part: MovablePart) -> np.ndarray:
+    """(M, 3) points of the volume a door sweeps: hinge-to-handle segments along the path."""
+    origin = np.asarray(part.origin, dtype=float)
+    path = handle_path(part, np.linspace(0.0, 1.0, 12))
+    s = np.linspace(0.0, 1.15, 8)[:, None, None]
+    return (origin + s * (path - origin)[None]).reshape(-1, 3)
+
+
+def _box_distance_xy(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(C,) horizontal distance from points (C, 2) to the rectangle lo..hi (0 inside)."""
+    d = np.maximum(np.maximum(lo - p, p - hi), 0.0)
+    return np.linalg.norm(d, axis=1)
+
+
+def robot_base_for_part(
+    part: MovablePart,
+    bounds: tuple[tuple[float, float, float], tuple[float, float, float]],
+    standoff: float = 0.12,
+) -> tuple[np.ndarray, float]:
+    """Robot base position (3,) and yaw (rad) in the object frame for opening ``part``.
+
+    Prismatic parts: facing the front (yaw pi), ready gripper ``standoff`` in front of
+    the handle. Revolute parts: grid search (see the module docstring).
+    """
+    if part.joint_type == "prismatic":
+        handle = np.asarray(part.handle_object, dtype=float)
+        base = handle + np.array([standoff + READY_TCP[0], 0.0, -READY_TCP[2]])
+        return base, float(np.pi)
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    # the handle is pulled while the part cracks open, then pushed from inside
+    grasp_f, push_f = PATH_FRACTIONS[:4], PATH_FRACTIONS[3:]
+    origin = np.asarray(part.origin, dtype=float)
+    axis = np.asarray(part.axis, dtype=float)
+    inner = push_point_link(part, PUSH_RADIUS, PUSH_DEPTH)
+    push = np.asarray([origin + _rot(axis, f * part.range) @ inner for f in push_f])
+    path = np.concatenate([handle_path(part, grasp_f), push])  # (K, 3)
+    approach = -opening_normals(part, grasp_f)  # (G, 3) gripper pointing into the face
+    swept = _swept_points(part)
+    centre = path.mean(axis=0)
+    xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
+    ys = np.arange(lo[1] - 1.0, hi[1] + 1.0, 0.05)
+    zs = centre[2] - SHOULDER_HEIGHT + np.arange(-0.4, 0.41, 0.1)
+    X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
+    base = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)  # (C, 3)
+    shoulder = base + np.array([0.0, 0.0, SHOULDER_HEIGHT])
+    d = path[None] - shoulder[:, None]  # (C, K, 3)
+    dist = np.linalg.norm(d, axis=2)
+    dh = np.linalg.norm(d[..., :2], axis=2)
+    cost = (np.maximum(dist - REACH[1], 0) ** 2 + np.maximum(REACH[0] - dist, 0) ** 2).sum(1)
+    cost += (np.maximum(0.3 - dh, 0) ** 2).sum(1)
+    # the gripper reaches away from the body more easily than back toward it
+    g = len(grasp_f)
+    u = d[:, :g, :2] / np.maximum(dh[:, :g, None], 1e-6)
+    facing = (approach[None, :, :2] * u).sum(2)
+    cost += 0.3 * (np.maximum(0.3 - facing, 0) ** 2).sum(1)
+    # prefer standing near the middle of the comfortable range
+    cost += 0.01 * ((dist - 0.55) ** 2).sum(1)
+    # the base column must stay clear of the object and of the swept volume
+    clear_obj = _box_distance_xy(base[:, :2], lo[:2], hi[:2])
+    bad = clear_obj < BASE_CLEARANCE
+    # (the arm rises above its base: any height of the swept volume counts)
+    near = np.linalg.norm(swept[None, :, :2] - base[:, None, :2], axis=2) < BASE_CLEARANCE
+    bad |= near.any(1)
+    # the ready gripper must not start inside the object
+    yaw = np.arctan2(centre[1] - base[:, 1], centre[0] - base[:, 0])
+    tcp = base + np.stack(
+        [np.cos(yaw) * READY_TCP[0], np.sin(yaw) * READY_TCP[0], np.full_like(yaw, READY_TCP[2])],
+        axis=1,
+    )
+    inside = (tcp > lo - 0.08).all(1) & (tcp < hi + 0.08).all(1)
+    cost += np.where(inside, 1.0, 0.0)
+    cost = np.where(bad, np.inf, cost)
+    best = int(np.argmin(cost))
+    if not np.isfinite(cost[best]):  # nothing clear: fall back to the front
+        return np.array([hi[0] + 0.8, centre[1], centre[2] - 0.6]), float(np.pi)
+    return base[best], float(yaw[best])
