@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import torch
 import torch.nn as nn
+from safetensors.torch import load_file, save_file
 
 from . import registry
 from .flow import FlowTrainConfig, SamplerConfig, sample
@@ -97,6 +99,31 @@ def build_stage1(cfg: Stage1Config) -> dict[str, nn.Module]:
     }
 
 
+@dataclass
+class LatentStats:
+    """Per-channel normalisation of the VAE latents the flow model is trained on:
+    the flow sees ``(z - mean) / std``; sampling returns that and ``denormalize`` maps it
+    back before decoding. ``mean``/``std`` (C,); identity when never set."""
+
+    mean: tuple[float, ...] = ()
+    std: tuple[float, ...] = ()
+
+    def _view(self, values: tuple[float, ...], like: torch.Tensor) -> torch.Tensor | None:
+        if not values:
+            return None
+        t = torch.tensor(values, dtype=like.dtype, device=like.device)
+        return t.view(len(values), 1, 1, 1)  # (C, 1, 1, 1), broadcasts over (..., C, r, r, r)
+
+    def normalize(self, z: torch.Tensor) -> torch.Tensor:
+        """z (..., C, r, r, r) -> (z - mean) / std."""
+        m, s = self._view(self.mean, z), self._view(self.std, z)
+        return z if m is None else (z - m) / s
+
+    def denormalize(self, x: torch.Tensor) -> torch.Tensor:
+        m, s = self._view(self.mean, x), self._view(self.std, x)
+        return x if m is None else x * s + m
+
+
 @torch.no_grad()
 def generate_parts(
     models: dict[str, nn.Module],
@@ -105,11 +132,85 @@ def generate_parts(
     sampler: SamplerConfig | None = None,
     generator: torch.Generator | None = None,
     exists_threshold: float = 0.5,
+    latent_stats: LatentStats | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """images (B, 3, H, W) in [0, 1], mask (B, H', W') ids or None ->
     occupancy (B, T, R, R, R) bool (dropped slots all False), exists (B, T) bool."""
     cond = models["image_encoder"](images)  # (B, N_img, D_img)
     latents, exists_logits = sample(models["flow"], cond, mask, sampler, generator)
+    if latent_stats is not None:
+        latents = latent_stats.denormalize(latents)
     occ = models["vae"].decode_parts(latents) > 0  # (B, T, R, R, R)
     exists = torch.sigmoid(exists_logits) > exists_threshold  # (B, T)
     return occ & exists[..., None, None, None], exists
+
+
+# --- the stage-1 checkpoint: image encoder + flow in one folder ------------------------
+
+STAGE1_SCHEMA = "pact.stage1"
+
+
+def save_stage1(
+    models: dict[str, nn.Module],
+    cfg: Stage1Config,
+    path: str | Path,
+    latent_stats: LatentStats | None = None,
+    dtype: torch.dtype = torch.float32,
+    extra: dict[str, Any] | None = None,
+) -> Path:
+    """Write ``image_encoder`` + ``flow`` to folder ``path``: ``model.safetensors`` (keys
+    ``image_encoder.*``, ``flow.*``, stored in ``dtype``) and ``config.json`` (the whole
+    stage-1 config, the latent statistics). Written under a temporary name, then renamed."""
+    path = Path(path)
+    tensors = {
+        f"{role}.{k}": v.detach().to("cpu", dtype if v.is_floating_point() else v.dtype)
+        .contiguous()
+        for role in ("image_encoder", "flow")
+        for k, v in models[role].state_dict().items()
+    }
+    stats = latent_stats or LatentStats()
+    meta = {
+        "schema": STAGE1_SCHEMA,
+        "version": 1,
+        "config": cfg.to_dict(),
+        "latent_stats": {"mean": list(stats.mean), "std": list(stats.std)},
+        "dtype": str(dtype).removeprefix("torch."),
+        "extra": extra or {},
+    }
+    tmp = path.with_name(path.name + ".tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    save_file(tensors, str(tmp / "model.safetensors"))
+    (tmp / "config.json").write_text(json.dumps(meta, indent=2))
+    if path.exists():
+        shutil.rmtree(path)
+    tmp.rename(path)
+    return path
+
+
+def load_stage1(
+    path: str | Path, device: torch.device | str = "cpu"
+) -> tuple[dict[str, nn.Module], Stage1Config, LatentStats]:
+    """Read a ``save_stage1`` folder: models ``image_encoder`` and ``flow`` (float32),
+    the config and the latent statistics. The VAE is a separate checkpoint."""
+    path = Path(path)
+    meta_file = path / "config.json"
+    if not meta_file.is_file():
+        raise FileNotFoundError(f"{path}: no config.json; not a stage-1 checkpoint folder")
+    meta = json.loads(meta_file.read_text())
+    if meta.get("schema") != STAGE1_SCHEMA:
+        raise ValueError(f"{meta_file}: schema {meta.get('schema')!r}, expected {STAGE1_SCHEMA!r}")
+    cfg_dict = dict(meta["config"])
+    cfg_dict["image_encoder"] = {**cfg_dict["image_encoder"], "weights": None}
+    cfg = config_from_dict(cfg_dict)
+    state = load_file(str(path / "model.safetensors"), device=str(device))
+    models = {}
+    for role, name in (("image_encoder", "vit"), ("flow", "part_flow")):
+        model = registry.build(name, getattr(cfg, role))
+        own = {k[len(role) + 1 :]: v for k, v in state.items() if k.startswith(role + ".")}
+        model.load_state_dict(own, strict=True)  # casts float16 files back to float32
+        models[role] = model.to(device).eval()
+    s = meta.get("latent_stats", {})
+    stats = LatentStats(tuple(s.get("mean", ())), tuple(s.get("std", ())))
+    return models, cfg, stats

@@ -1,0 +1,82 @@
+"""Batch conversion throughput (issue 6). Prints JSON.
+
+    .venv/bin/python bench/convert.py [--images examples/images] [--generator retrieval]
+        [--workers 1 2] [--repeat 2]
+
+For each worker count, converts the image folder (its items repeated ``--repeat``
+times under new names) into a fresh output folder with validation and previews on,
+and reports objects per minute (wall clock, including worker start-up), the mean
+seconds per stage, and peak resident memory of the driver and of the largest worker.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from asset_pipeline.batch import STAGES, ConvertSettings, run_convert
+
+
+def replicate(src: Path, dst: Path, repeat: int) -> int:
+    """Copy every item of ``src`` ``repeat`` times as ``<name>_r<k>``; returns the item count."""
+    dst.mkdir(parents=True)
+    n = 0
+    for img in sorted(src.glob("*.png")):
+        if img.name.endswith(".mask.png"):
+            continue
+        stem = img.stem
+        for k in range(repeat):
+            name = f"{stem}_r{k}"
+            shutil.copy(img, dst / f"{name}.png")
+            for suffix in (".mask.png", ".json"):
+                if (src / f"{stem}{suffix}").is_file():
+                    shutil.copy(src / f"{stem}{suffix}", dst / f"{name}{suffix}")
+            n += 1
+    return n
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--images", type=Path, default=Path("examples/images"))
+    ap.add_argument("--generator", default="retrieval")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args()
+    settings = ConvertSettings(generator=args.generator)
+    out: dict = {"generator": args.generator, "runs": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        images = Path(tmp) / "images"
+        n = replicate(args.images, images, args.repeat)
+        out["items"] = n
+        for w in args.workers:
+            t0 = time.perf_counter()
+            summary = run_convert(images, Path(tmp) / f"out{w}", settings, workers=w)
+            wall = time.perf_counter() - t0
+            stage = {
+                s: statistics.mean(r.stage_seconds.get(s, 0.0) for r in summary.results)
+                for s in STAGES
+            }
+            out["runs"].append(
+                {
+                    "workers": w,
+                    "objects": len(summary.results),
+                    "failed": len(summary.failed),
+                    "wall_seconds": wall,
+                    "objects_per_minute": 60.0 * len(summary.results) / wall,
+                    "mean_stage_seconds": stage,
+                }
+            )
+    self_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    child_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    out["peak_rss_mb"] = {"driver": self_kb / 1024, "largest_worker": child_kb / 1024}
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
