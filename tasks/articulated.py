@@ -53,7 +53,7 @@ from sim_envs.scene import (
     rotate_z,
     yaw_quat,
 )
-from tasks.placement import face_normal_link, robot_base_for_part
+from tasks.placement import PandaReach, face_normal_link, robot_base_for_part
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +62,8 @@ log = logging.getLogger(__name__)
 # (index 6) turns by pi/2 for vertical handle bars so that the fingers close across them.
 READY_QPOS = np.array([0.0, -0.2, 0.0, -1.8, 0.0, 3.171, -0.785, 0.04, 0.04], dtype=np.float32)
 VERTICAL_BAR_WRIST = 0.785
+# robot placements per (asset folder, part, standoff): inverse kinematics is run once
+_PLACEMENTS: dict[tuple[str, str, float], tuple[np.ndarray, float]] = {}
 
 
 class ArticulatedPartEnv(BaseEnv):
@@ -204,7 +206,7 @@ class ArticulatedPartEnv(BaseEnv):
             for k in range(n_slots)
         ]
         rows: dict[str, list] = {k: [] for k in ("dof", "hl", "ho", "ha", "ja", "lo", "hi")}
-        rows.update(base=[], yaw=[], normal=[])
+        rows.update(base=[], yaw=[], normal=[], qstart=[])
         for i, parts in enumerate(self.candidate_parts):
             joint_names = [j.name for j in objects[i].active_joints]
             rec = self.episode_assets[i]
@@ -216,11 +218,12 @@ class ArticulatedPartEnv(BaseEnv):
             rows["ja"].append([p.axis for p in slot_parts])
             rows["lo"].append([p.lower for p in slot_parts])
             rows["hi"].append([p.upper for p in slot_parts])
-            placements = [
-                robot_base_for_part(p, rec.bounds, self.handle_standoff) for p in slot_parts
-            ]
-            rows["base"].append([b for b, _ in placements])
-            rows["yaw"].append([y for _, y in placements])
+            placements = [self._placement(rec, p) for p in slot_parts]
+            rows["base"].append([b for b, _, _ in placements])
+            rows["yaw"].append([y for _, y, _ in placements])
+            rows["qstart"].append(
+                [_start_qpos(p, q) for p, (_, _, q) in zip(slot_parts, placements, strict=True)]
+            )
             rows["normal"].append([face_normal_link(p) for p in slot_parts])
 
         def tensor(v: list) -> torch.Tensor:
@@ -236,6 +239,7 @@ class ArticulatedPartEnv(BaseEnv):
         self._slot_base = tensor(rows["base"])  # (N, P, 3) robot base, object frame
         self._slot_base_yaw = tensor(rows["yaw"])  # (N, P)
         self._slot_normal = tensor(rows["normal"])  # (N, P, 3) handle face normal, link frame
+        self._slot_qstart = tensor(rows["qstart"])  # (N, P, 9) robot joints at the start
         n = self.num_envs
         self.part_slot = torch.zeros(n, device=self.device, dtype=torch.long)
         self.episode_parts: list[MovablePart] = [c[0] for c in self.candidate_parts]
@@ -251,6 +255,18 @@ class ArticulatedPartEnv(BaseEnv):
         self.start_fraction = torch.zeros(n, device=self.device)
         self.object_yaw = torch.zeros(n, device=self.device)
         self._merged_target: dict[tuple[int, ...], Link] = {}
+
+    def _placement(
+        self, rec: AssetRecord, part: MovablePart
+    ) -> tuple[np.ndarray, float, np.ndarray | None]:
+        """Robot base (object frame), yaw and start joints for ``part``, cached per process."""
+        key = (str(rec.path), part.name, self.handle_standoff)
+        if key not in _PLACEMENTS:
+            reach = None
+            if part.joint_type == "revolute":
+                reach = PandaReach(self.agent.robot._objs[0], self.agent.ee_link_name, READY_QPOS)
+            _PLACEMENTS[key] = robot_base_for_part(part, rec.bounds, self.handle_standoff, reach)
+        return _PLACEMENTS[key]
 
     def _select_parts(self, env_idx: torch.Tensor) -> None:
         """Pick each env's target part for this episode and copy its row of the tables."""
@@ -322,9 +338,7 @@ class ArticulatedPartEnv(BaseEnv):
             robot_yaw = yaw + self._slot_base_yaw[env_idx, slot]
             robot_yaw = robot_yaw + (torch.rand(b) * 2 - 1) * 0.05
             self.agent.robot.set_pose(Pose.create_from_pq(p=base, q=yaw_quat(robot_yaw)))
-            rq = torch.tensor(READY_QPOS).expand(b, -1).clone()
-            vertical_bar = self.handle_axis_obj[env_idx, 2].abs() > 0.7
-            rq[vertical_bar, 6] = VERTICAL_BAR_WRIST
+            rq = self._slot_qstart[env_idx, slot].clone()
             rq[:, :7] += torch.randn((b, 7)) * self.robot_init_qpos_noise
             self.agent.robot.set_qpos(rq)
             self.agent.robot.set_qvel(torch.zeros_like(rq))
@@ -409,3 +423,14 @@ class ArticulatedPartEnv(BaseEnv):
         self, obs: Any, action: torch.Tensor, info: dict
     ) -> torch.Tensor:
         return self.compute_dense_reward(obs=obs, action=action, info=info) / self.max_reward
+
+
+def _start_qpos(part: MovablePart, placed: np.ndarray | None) -> np.ndarray:
+    """(9,) robot joints at the start: the placement's pre-grasp, else the ready pose
+    (wrist turned for vertical bars so that the fingers close across them)."""
+    q = READY_QPOS.copy()
+    if placed is not None:
+        q[:7] = np.asarray(placed, dtype=np.float32)[:7]
+    elif abs(part.handle_axis[2]) > 0.7:
+        q[6] = VERTICAL_BAR_WRIST
+    return q

@@ -14,9 +14,12 @@ class OpenDoorEnv(ArticulatedPartEnv):
     Swing one door (or lid) of a built articulated asset open with a fixed-base Panda.
 
     **Randomizations:**
-    - the asset is sampled from the asset source among those with a revolute part, the
-      door among its revolute parts (per env, at reconfiguration)
-    - object and robot poses as in OpenDrawer-v0
+    - the asset is sampled from the asset source among those with a revolute part (per
+      env, at reconfiguration), the door among its revolute parts at every reset
+    - the object's pose as in OpenDrawer-v0; the robot stands where the handle's whole
+      opening path is in reach and clear of the swinging door (beside a side-hinged
+      door, in front of and beside a bottom-hinged one; ``tasks.placement``), its arm
+      at the pre-grasp 12 cm in front of the handle; 2 cm, 0.05 rad and 0.02 rad noise
 
     **Success Conditions:**
     - the door's joint is at least 75% of its range open and the door is nearly still

@@ -15,7 +15,8 @@ class OpenDrawerEnv(ArticulatedPartEnv):
 
     **Randomizations:**
     - the asset is sampled from the asset source (folder or catalog) among those with a
-      prismatic part, the drawer among its prismatic parts (per env, at reconfiguration)
+      prismatic part (per env, at reconfiguration), the drawer among its prismatic
+      parts at every reset
     - the object stands at the origin, shifted by up to 3 cm and turned by up to 0.1 rad
     - the robot faces the object's front, its ready gripper about 12 cm in front of the
       handle, shifted by up to 2 cm, turned by up to 0.05 rad; joint noise 0.02 rad

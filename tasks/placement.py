@@ -6,10 +6,15 @@ a circle about the hinge, up to a metre across for a fridge door, so the base is
 by a small grid search: every handle point on the opening path (``lower`` to
 ``lower + 0.9 * range``) within comfortable reach of the shoulder, the gripper able to
 face the handle along the path, and the base column clear of the object and of the
-volume the part sweeps.
+volume the part sweeps. With the robot's kinematics (:class:`PandaReach`, SAPIEN's
+Pinocchio model) the best candidates are re-ranked by how far along the path the
+grasp stays reachable within the joint limits, and the arm starts at the pre-grasp
+joint positions found on the way.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -20,6 +25,7 @@ SHOULDER_HEIGHT = 0.333  # panda_link2 above the base
 REACH = (0.35, 0.68)  # comfortable shoulder-to-tcp distances (m)
 BASE_CLEARANCE = 0.2  # base column radius plus margin (m)
 PATH_FRACTIONS = np.linspace(0.0, 0.9, 10)  # of the joint range
+FOLLOW_FRACTIONS = np.linspace(0.0, 0.85, 9)
 
 
 def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -59,20 +65,26 @@ def face_normal_link(part: MovablePart) -> np.ndarray:
     return opening_normals(part, np.array([0.0]))[0]
 
 
-PUSH_DEPTH = 0.07  # behind the hinge plane (the part's front face) when pushing from inside
 PUSH_RADIUS = 0.85  # fraction of the handle's distance from the hinge where the pusher presses
 
 
 def hinge_frame_link(part: MovablePart) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Joint axis ``a``, radial ``r`` (hinge toward handle) and face normal ``n`` unit
-    vectors and the handle radius (m), in the link frame at the closed pose."""
+    """Joint axis ``a``, radial ``r`` (hinge toward handle, in the face plane) and face
+    normal ``n`` unit vectors and the handle's radius (m), in the link frame, closed pose.
+
+    ``n`` is the object axis nearest to the handle's opening direction (the parts'
+    faces are axis-aligned), so a bar's standoff does not tilt the frame.
+    """
     a = np.asarray(part.axis, dtype=float)
     a = a / np.linalg.norm(a)
     h = np.asarray(part.handle_link, dtype=float)
-    r_vec = h - a * (h @ a)
+    t = np.cross(a, h - a * (h @ a))
+    n = np.zeros(3)
+    k = int(np.argmax(np.abs(t)))
+    n[k] = np.sign(t[k])
+    r_vec = h - a * (h @ a) - n * (h @ n)
     radius = float(np.linalg.norm(r_vec))
-    r = r_vec / max(radius, 1e-9)
-    return a, r, np.cross(a, r), radius
+    return a, r_vec / max(radius, 1e-9), n, radius
 
 
 def push_point_link(part: MovablePart, radial: float, depth: float) -> np.ndarray:
@@ -80,7 +92,7 @@ def push_point_link(part: MovablePart, radial: float, depth: float) -> np.ndarra
     height along the axis, ``depth`` metres behind the hinge plane (negative: in front)."""
     a, r, n, radius = hinge_frame_link(part)
     h = np.asarray(part.handle_link, dtype=float)
-    return a * (h @ a) + r * radial * radius - n * depth
+    return a * (h @ a) + r * (radial * radius) - n * depth
 
 
 def _swept_points(part: MovablePart) -> np.ndarray:
@@ -97,29 +109,123 @@ def _box_distance_xy(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarra
     return np.linalg.norm(d, axis=1)
 
 
+def grasp_poses(part: MovablePart, fractions: np.ndarray = FOLLOW_FRACTIONS) -> list:
+    """Per fraction, the candidate tcp poses (4, 4) grasping the handle (object frame):
+    z into the handle's face, fingers (y) closing across the bar, either way round."""
+    path = handle_path(part, fractions)
+    normals = opening_normals(part, fractions)
+    axis = np.asarray(part.axis, dtype=float)
+    bar0 = np.asarray(part.handle_axis, dtype=float)
+    out = []
+    for f, p, n in zip(fractions, path, normals, strict=True):
+        bar = bar0 if part.joint_type == "prismatic" else _rot(axis, f * part.range) @ bar0
+        a = -n
+        c = np.cross(a, bar)
+        if np.linalg.norm(c) < 1e-3:
+            c = np.cross(a, np.cross(np.array([0.0, 0.0, 1.0]), a))
+        c /= np.linalg.norm(c)
+        poses = []
+        for sign in (1.0, -1.0):
+            T = np.eye(4)
+            T[:3, :3] = np.stack([np.cross(sign * c, a), sign * c, a], axis=1)
+            T[:3, 3] = p
+            poses.append(T)
+        out.append(poses)
+    return out
+
+
+class PandaReach:
+    """Inverse kinematics of the task's Panda (SAPIEN's Pinocchio model) for placement.
+
+    ``follow(base, yaw, grasps, standoff)`` -> (the fraction of the consecutive grasp
+    poses, from the closed pose on, the arm reaches within its joint limits, each
+    seeded by the last; the joint positions at the pre-grasp ``standoff`` metres out).
+    """
+
+    margin = 0.12  # rad kept from every joint limit
+
+    def __init__(self, articulation: Any, tcp_link: str, ready_qpos: np.ndarray) -> None:
+        self.model = articulation.create_pinocchio_model()
+        names = [link.name for link in articulation.links]
+        self.tcp = next(i for i, n in enumerate(names) if n.endswith(tcp_link))
+        self.limits = np.asarray(articulation.get_qlimits(), dtype=float)[:7]
+        self.ready = np.asarray(ready_qpos, dtype=float)
+        self.mask = [1] * 7 + [0] * (len(self.ready) - 7)
+
+    def _ik(self, T: np.ndarray, q0: np.ndarray) -> np.ndarray | None:
+        import sapien
+        from scipy.spatial.transform import Rotation
+
+        xyzw = Rotation.from_matrix(T[:3, :3]).as_quat()
+        pose = sapien.Pose(T[:3, 3], [xyzw[3], xyzw[0], xyzw[1], xyzw[2]])
+        q, ok, _ = self.model.compute_inverse_kinematics(
+            self.tcp, pose, initial_qpos=q0, active_qmask=self.mask, max_iterations=100
+        )
+        q = np.asarray(q, dtype=float)
+        lo, hi = self.limits[:, 0] + self.margin, self.limits[:, 1] - self.margin
+        if not ok or (q[:7] < lo).any() or (q[:7] > hi).any():
+            return None
+        return q
+
+    def follow(
+        self, base: np.ndarray, yaw: float, grasps: list, standoff: float = 0.12
+    ) -> tuple[float, np.ndarray | None]:
+        c, s = np.cos(yaw), np.sin(yaw)
+        to_root = np.eye(4)
+        to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
+        to_root[:3, 3] = -to_root[:3, :3] @ base
+        q = self.ready.copy()
+        reached, start = 0, None
+        for k, poses in enumerate(grasps):
+            best = None
+            for T in poses:
+                q_pre = None
+                if k == 0:  # the pre-grasp, ``standoff`` out, must be reachable too
+                    pre = T.copy()
+                    pre[:3, 3] -= T[:3, 2] * standoff
+                    q_pre = self._ik(to_root @ pre, q)
+                    if q_pre is None:
+                        continue
+                    cand = self._ik(to_root @ T, q_pre)
+                else:
+                    cand = self._ik(to_root @ T, q)
+                if cand is not None and (
+                    best is None or np.abs(cand - q).sum() < np.abs(best[0] - q).sum()
+                ):
+                    best = (cand, q_pre)
+            if best is None:
+                break
+            q = best[0]
+            if k == 0:
+                start = best[1]
+            reached += 1
+        return reached / len(grasps), start
+
+
 def robot_base_for_part(
     part: MovablePart,
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]],
     standoff: float = 0.12,
-) -> tuple[np.ndarray, float]:
-    """Robot base position (3,) and yaw (rad) in the object frame for opening ``part``.
+    reach: PandaReach | None = None,
+    n_checked: tuple[int, int] = (25, 50),
+) -> tuple[np.ndarray, float, np.ndarray | None]:
+    """Robot base position (3,), yaw (rad) in the object frame and arm joint positions
+    (or None: the ready pose) at the start, for opening ``part``.
 
     Prismatic parts: facing the front (yaw pi), ready gripper ``standoff`` in front of
-    the handle. Revolute parts: grid search (see the module docstring).
+    the handle. Revolute parts: grid search (see the module docstring); with ``reach``
+    the ``n_checked[0]`` best candidates and ``n_checked[1]`` others drawn at random
+    (seeded) are ranked by inverse kinematics along the grasped path, and the arm
+    starts at the pre-grasp ``standoff`` in front of the handle.
     """
     if part.joint_type == "prismatic":
         handle = np.asarray(part.handle_object, dtype=float)
         base = handle + np.array([standoff + READY_TCP[0], 0.0, -READY_TCP[2]])
-        return base, float(np.pi)
+        return base, float(np.pi), None
     lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    # the handle is pulled while the part cracks open, then pushed from inside
-    grasp_f, push_f = PATH_FRACTIONS[:4], PATH_FRACTIONS[3:]
-    origin = np.asarray(part.origin, dtype=float)
-    axis = np.asarray(part.axis, dtype=float)
-    inner = push_point_link(part, PUSH_RADIUS, PUSH_DEPTH)
-    push = np.asarray([origin + _rot(axis, f * part.range) @ inner for f in push_f])
-    path = np.concatenate([handle_path(part, grasp_f), push])  # (K, 3)
-    approach = -opening_normals(part, grasp_f)  # (G, 3) gripper pointing into the face
+    grasp_f = PATH_FRACTIONS
+    path = handle_path(part, grasp_f)  # (K, 3)
+    approach = -opening_normals(part, grasp_f)  # (K, 3) gripper pointing into the face
     swept = _swept_points(part)
     centre = path.mean(axis=0)
     xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
@@ -157,5 +263,21 @@ def robot_base_for_part(
     cost = np.where(bad, np.inf, cost)
     best = int(np.argmin(cost))
     if not np.isfinite(cost[best]):  # nothing clear: fall back to the front
-        return np.array([hi[0] + 0.8, centre[1], centre[2] - 0.6]), float(np.pi)
-    return base[best], float(yaw[best])
+        return np.array([hi[0] + 0.8, centre[1], centre[2] - 0.6]), float(np.pi), None
+    if reach is None:
+        return base[best], float(yaw[best]), None
+    # the heuristic's best few and some others, ranked by how far along the path the
+    # grasp stays kinematically feasible (inverse kinematics, seeded step by step)
+    ranked = [int(i) for i in np.argsort(cost) if np.isfinite(cost[i])]
+    rng = np.random.default_rng(0)
+    rest = ranked[n_checked[0] :]
+    extra = rng.choice(rest, size=min(n_checked[1], len(rest)), replace=False) if rest else []
+    order = ranked[: n_checked[0]] + [int(i) for i in extra]
+    grasps = grasp_poses(part)
+    best_score, pick, start = -np.inf, best, None
+    for i in order:
+        frac, q = reach.follow(base[i], float(yaw[i]), grasps, standoff)
+        score = frac - 0.01 * cost[i]
+        if score > best_score:
+            best_score, pick, start = score, i, q
+    return base[pick], float(yaw[pick]), start

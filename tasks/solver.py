@@ -1,19 +1,31 @@
 """Scripted solver: grasp the handle and move the part along its joint, and ``check_tasks``.
 
 The solver drives the Panda with ``pd_ee_delta_pose`` as a Cartesian controller
-(one env, CPU simulation):
+(one env, CPU simulation). The env has already placed the robot where the handle's
+opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.placement`).
 
-1. pre-grasp: the gripper 10 cm in front of the handle, pointing into the part's
-   front face (-x of the part's link frame), fingers closing across the handle bar;
-2. approach the handle, 3. close the fingers;
+1. pre-grasp: the gripper 10 cm in front of the handle, pointing into the face that
+   carries it (its outward normal comes from the joint: the direction the handle
+   moves as the part opens, so a lid is approached from above), fingers closing
+   across a bar or knob; a recess (a pocket) is entered with closed fingertips, their
+   slim side across the pocket, after lining up 2 cm in front of it;
+2. approach the handle, 3. close the fingers (in a recess: lean on a side wall);
 4. pull: every step the goal is the grasp pose carried by the part's link moved a
    little further along its joint (a translation for drawers, a rotation about the
-   hinge for doors), computed from the link's *current* pose, so the command is a
-   velocity along the joint's own path that tolerates lag and slip;
+   hinge for doors, the tcp turning with the door), computed from the link's
+   *current* pose, so the command is a velocity along the joint's own path that
+   tolerates lag and slip;
+4b. when the pull stalls short of the goal: a bottom-hinged door whose weight now
+   opens it is let go to fall to its stop; another door at least ``push_min_angle``
+   ajar is pushed from inside (the closed fingers go round its free edge and press
+   on its inner face along the hinge circle);
 5. hold still until the success flag holds (the part must be nearly still).
 
-``check_tasks(path)`` runs the solver on every movable part of every built asset
-under ``path`` and reports which ones the robot can really open.
+``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
+distance, finger gap (a grasp that slipped closes to 0) and the arm's smallest
+joint-limit margin in ``ScriptedSolver.trace``. ``check_tasks(path)`` runs the
+solver on every movable part of every built asset under ``path`` and reports which
+ones the robot can really open.
 """
 
 from __future__ import annotations
@@ -29,7 +41,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sim_envs.catalog import AssetRecord, ListSource, open_source
-from tasks.placement import PUSH_DEPTH, PUSH_RADIUS, hinge_frame_link, push_point_link
+from tasks.placement import PUSH_RADIUS, hinge_frame_link, push_point_link
 
 log = logging.getLogger(__name__)
 
@@ -49,10 +61,12 @@ class SolverConfig:
     max_steps: int = 300
     hold_steps: int = 15
     recess_depth: float = 0.008  # how far past a recessed handle's point the closed fingers go
+    recess_press: float = 0.04  # m the pulling goal is set into the pocket's side wall
     release_fraction: float = 0.08  # a bottom-hinged door this far open falls open if let go
     release_steps: int = 60
     push_min_angle: float = 0.25  # rad a door must be ajar before it can be pushed open
     push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
+    push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
 
 
@@ -162,11 +176,15 @@ class ScriptedSolver:
     def _finger_gap(self) -> float:
         return float(_np(self.u.agent.robot.get_qpos())[0, 7:9].sum())
 
-    def _arm_limit_margin(self) -> float:
-        """Smallest distance (rad) of an arm joint to its limit."""
+    def _arm_limit_margins(self) -> np.ndarray:
+        """(7,) distance (rad) of each arm joint to its nearer limit."""
         q = _np(self.u.agent.robot.get_qpos())[0, :7]
         lim = _np(self.u.agent.robot.get_qlimits())[0, :7]
-        return float(np.min(np.minimum(q - lim[:, 0], lim[:, 1] - q)))
+        return np.minimum(q - lim[:, 0], lim[:, 1] - q)
+
+    def _arm_limit_margin(self) -> float:
+        """Smallest distance (rad) of an arm joint to its limit."""
+        return float(self._arm_limit_margins().min())
 
     def _carried(self, point_link: np.ndarray) -> np.ndarray:
         """World position of a point fixed in the target link's frame."""
@@ -194,25 +212,32 @@ class ScriptedSolver:
             T[:3, :3], T[:3, 3] = R, p
             return T
 
-        L = self._link()
-        out = self._tcp()[:3, 3] + L[:3, :3] @ normal_l * 0.1
+        T = self._tcp()
+        out = T[:3, 3] - T[:3, 2] * 0.12
+        self._phase = "push:back"
         self._go(lambda: pose(out, R0), GRIPPER_OPEN, do, budget=15)
         # 2. the fingers point from beyond the free edge toward the hinge, closing along
         # the axis (a flat paddle against the inner face)
         edge = 1.0 + cfg.push_edge_clearance / radius
-
-        def insert_rot() -> np.ndarray:
-            L = self._link()
-            z = -(L[:3, :3] @ radial_l)
-            y = L[:3, :3] @ np.cross(normal_l, radial_l)
-            return np.stack([np.cross(y, z), y, z], axis=1)
-
-        Rp = insert_rot()
-        for rad, depth in ((edge, -0.08), (edge, PUSH_DEPTH), (PUSH_RADIUS, PUSH_DEPTH)):
-            pt = push_point_link(part, rad, depth)
+        L = self._link()
+        z = -(L[:3, :3] @ radial_l)
+        y = L[:3, :3] @ np.cross(normal_l, radial_l)
+        Rp = np.stack([np.cross(y, z), y, z], axis=1)
+        self._phase = "push:turn"
+        for _ in range(15):
+            do(self._action(pose(out, Rp), GRIPPER_CLOSED))
+        depth = self._inner_face_depth(normal_l) + cfg.push_clearance
+        for name, rad, dep in (
+            ("push:edge", edge, -0.1),
+            ("push:behind", edge, depth),
+            ("push:slide", PUSH_RADIUS, depth),
+        ):
+            self._phase = name
+            pt = push_point_link(part, rad, dep)
             self._go(lambda pt=pt: pose(self._carried(pt), Rp), GRIPPER_CLOSED, do, budget=25)
+        self._phase = "push"
         # 3. push: the pressing point carried a little further along the hinge circle
-        inner = push_point_link(part, PUSH_RADIUS, PUSH_DEPTH)
+        inner = push_point_link(part, PUSH_RADIUS, depth)
         history: list[float] = []
         while True:
             f = frac()
@@ -225,6 +250,20 @@ class ScriptedSolver:
             dq = min(cfg.revolute_speed, (target - f) * part.range + 0.01)
             p = (joint_motion("revolute", axis, L[:3, 3], dq) @ L @ np.append(inner, 1.0))[:3]
             do(self._action(pose(p, Rp), GRIPPER_CLOSED))
+
+    def _inner_face_depth(self, normal_link: np.ndarray) -> float:
+        """How far (m) the target part's collision shapes reach behind its hinge plane."""
+        depth = 0.0
+        for shape in self.u.target_link._objs[0].get_collision_shapes():
+            verts = getattr(shape, "vertices", None)
+            if verts is None:
+                continue
+            pose = shape.get_local_pose()
+            R = Rotation.from_quat(np.roll(np.asarray(pose.q, dtype=float), -1)).as_matrix()
+            v = np.asarray(verts, dtype=float) * np.asarray(shape.scale, dtype=float)
+            v = v @ R.T + np.asarray(pose.p, dtype=float)
+            depth = max(depth, float(-(v @ normal_link).min()))
+        return depth
 
     def _gravity_torque(self) -> float:
         """Gravity's torque (N m) on the target part about its joint axis, positive = opening."""
@@ -241,14 +280,15 @@ class ScriptedSolver:
         u, cfg = self.u, self.cfg
         part = u.episode_parts[0]
         closing = bool(u.closing)
+        # a recess (a pocket without an undercut) is entered with closed fingertips, the
+        # slim side (17 mm) across the pocket; they press on a side wall while pulling
         recessed = part.handle_kind in ("recessed", "none")
-        # a recess is entered with closed fingers that then spread against its walls
         g_reach = GRIPPER_CLOSED if recessed else GRIPPER_OPEN
-        g_hold = GRIPPER_OPEN if recessed else GRIPPER_CLOSED
+        g_hold = GRIPPER_CLOSED
         step = 0
         info: dict[str, Any] = {}
         self.trace: list[dict[str, Any]] = []
-        phase = "pregrasp"
+        phase = self._phase = "pregrasp"
 
         def frac() -> float:
             return float(_np(u.open_fraction())[0])
@@ -262,11 +302,15 @@ class ScriptedSolver:
                 self.trace.append(
                     {
                         "step": step,
-                        "phase": phase,
+                        "phase": self._phase,
                         "fraction": round(frac(), 4),
                         "tcp_handle": round(float(_np(info["tcp_to_handle_dist"])[0]), 4),
                         "finger_gap": round(self._finger_gap(), 4),
                         "arm_limit_margin": round(self._arm_limit_margin(), 3),
+                        "arm_at_limit": int(np.argmin(self._arm_limit_margins())),
+                        "tcp_in_link": np.round(
+                            (np.linalg.inv(self._link()) @ self._tcp())[:3, 3], 3
+                        ).tolist(),
                     }
                 )
             return info
@@ -280,16 +324,20 @@ class ScriptedSolver:
             L = self._link()
             approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
             center = L[:3, :3] @ handle_link + L[:3, 3]
-            T = grasp_frame(approach, L[:3, :3] @ handle_axis_link, center, self._tcp()[:3, 1])
+            bar = L[:3, :3] @ handle_axis_link
+            if recessed:  # fingers closing along the pocket: the bar "across" it
+                bar = np.cross(approach, bar)
+            T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
 
         # 1-2. pre-grasp then approach
-        for name, offset, tol, budget in (
-            ("pregrasp", cfg.pregrasp_distance, 0.015, 80),
-            ("approach", -depth, 0.006, 40),
-        ):
-            phase = name
+        stages = [("pregrasp", cfg.pregrasp_distance, 0.015, 80)]
+        if recessed:  # line the fingertips up with the pocket before going in
+            stages.append(("align", 0.02, 0.003, 30))
+        stages.append(("approach", -depth, 0.006, 40))
+        for name, offset, tol, budget in stages:
+            phase = self._phase = name
             goal = grasp_goal(offset)
             for _ in range(budget):
                 dp, dr = self._errors(goal)
@@ -297,19 +345,28 @@ class ScriptedSolver:
                     break
                 do(self._action(goal, g_reach))
                 goal = grasp_goal(offset)
-        # 3. grasp (or spread in the recess)
-        phase = "grasp"
+        # 3. grasp (or, in a recess, lean on the pocket's side wall)
+        phase = self._phase = "grasp"
         goal = grasp_goal(-depth)
         for _ in range(10):
             do(self._action(goal, g_hold))
         tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
+        if recessed:
+            # lean across the pocket (tcp x); for a door, toward its free edge
+            press = np.eye(4)
+            press[0, 3] = cfg.recess_press
+            if part.joint_type == "revolute":
+                _, radial_l, _, _ = hinge_frame_link(part)
+                if tcp_in_link[:3, 0] @ radial_l < 0:
+                    press[0, 3] = -cfg.recess_press
+            tcp_in_link = tcp_in_link @ press
         # 4. move along the joint
         target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
         target = float(np.clip(target, 0.02, 0.98))
         sign = -1.0 if closing else 1.0
         speed = cfg.prismatic_speed if part.joint_type == "prismatic" else cfg.revolute_speed
         axis_obj = _np(u.joint_axis_world())[0].astype(float)
-        phase = "move"
+        phase = self._phase = "move"
         history: list[float] = []
         while step < cfg.max_steps - cfg.hold_steps:
             f = frac()
@@ -329,7 +386,7 @@ class ScriptedSolver:
         g_final = g_hold
         if not closing and part.joint_type == "revolute" and frac() < target:
             if frac() >= cfg.release_fraction and self._gravity_torque() > 0.5:
-                phase = "release"
+                phase = self._phase = "release"
                 g_final = GRIPPER_OPEN
                 away = self._tcp()
                 away[:3, 3] -= away[:3, 2] * 0.08
@@ -338,11 +395,11 @@ class ScriptedSolver:
                     if bool(_np(info["success"])[0]):
                         break
             elif frac() * part.range >= cfg.push_min_angle:
-                phase = "push"
+                phase = self._phase = "push"
                 g_final = GRIPPER_CLOSED
                 self._push_open(part, target, axis_obj, do, frac)
         # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
-        phase = "hold"
+        phase = self._phase = "hold"
         hold = self._tcp()
         for _ in range(cfg.hold_steps):
             info = do(self._action(hold, g_final))

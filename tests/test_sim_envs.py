@@ -65,7 +65,7 @@ def write_box_cabinet(
   <joint name="joint_{name}" type="{joint_type}">
     <parent link="base"/><child link="{name}"/><origin xyz="{" ".join(map(str, origin))}"/>
     <axis xyz="{" ".join(map(str, axis))}"/><limit lower="0" upper="{upper}" effort="100" velocity="1"/>
-    <dynamics damping="1.0" friction="0.05"/>
+    <dynamics damping="1.0" friction="0.02"/>
   </joint>
 </robot>"""
     (folder / "model.urdf").write_text(urdf)
@@ -187,6 +187,9 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
         assert shape.physical_material.static_friction == pytest.approx(
             DEFAULT_SIM_OPTIONS.static_friction
         )
+        # the URDF's joint friction, not PhysX's default 0.05 (SAPIEN's builder drops it)
+        (joint,) = obj.get_active_joints()
+        assert joint.friction == pytest.approx(0.02)
         # the front of the object faces the robot: the robot base is on the +x side
         assert float(u.agent.robot.pose.p[0, 0]) > 0.5
         # a fixed base does not move under gravity

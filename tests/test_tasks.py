@@ -14,13 +14,14 @@ import tasks  # noqa: F401  (registers the envs)
 
 @pytest.fixture(scope="module")
 def procedural_assets(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Built procedural assets: a desk with drawers and a microwave with a door."""
+    """Built procedural assets: a desk with drawers, a microwave with a side-hinged door,
+    an oven with a bottom-hinged door and a fridge with two side-hinged doors."""
     from asset_pipeline.build import build_asset
     from generator.articulated import save_bundle
     from generator.procedural import object_id, sample_object
 
     root = tmp_path_factory.mktemp("assets")
-    for category, seed in (("desk", 0), ("microwave", 1)):
+    for category, seed in (("desk", 0), ("microwave", 1), ("oven", 0), ("refrigerator", 0)):
         build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
     return root
 
@@ -120,18 +121,73 @@ def test_dense_reward_rises_as_gripper_approaches(procedural_assets: Path) -> No
         env.close()
 
 
+def test_resets_between_reconfigurations_resample_part_and_poses(
+    procedural_assets: Path,
+) -> None:
+    """With reconfiguration_freq=k the asset stays loaded for k episodes; each reset
+    still draws the target part (among the loaded asset's drawers) and the poses."""
+    env = _make("OpenDrawer-v0", procedural_assets, category="desk", reconfiguration_freq=4)
+    try:
+        env.reset(seed=0, options={"reconfigure": True})  # starts a cycle of 4 episodes
+        u = env.unwrapped
+        loaded = u.object._objs[0]
+        parts, bases = set(), set()
+        for _ in range(3):
+            env.reset()
+            assert u.object._objs[0] is loaded  # no reload
+            part = u.episode_parts[0]
+            parts.add(part.name)
+            bases.add(tuple(np.round(u.agent.robot.pose.p[0].numpy(), 4)))
+            # the tables follow the part: its joint, closed, and its handle where the link is
+            joints = u.object._objs[0].get_active_joints()
+            assert joints[int(u.target_dof_idx[0])].name.endswith(part.joint_name)
+            assert float(u.open_fraction()[0]) == pytest.approx(0.0, abs=1e-4)
+            assert u.target_link._objs[0].name.endswith(part.name)
+        assert len(bases) == 3
+        env.reset()  # the 4th reset after the reload: a new scene
+        assert u.object._objs[0] is not loaded
+        # over a few seeds every drawer of the desk gets picked
+        for seed in range(1, 12):
+            env.reset(seed=seed)
+            parts.add(u.episode_parts[0].name)
+        assert len(parts) > 1
+    finally:
+        env.close()
+
+
+def test_robot_placement_keeps_door_path_in_reach(procedural_assets: Path) -> None:
+    from sim_envs import FolderSource
+    from tasks.placement import REACH, SHOULDER_HEIGHT, handle_path, robot_base_for_part
+
+    fridge = next(r for r in FolderSource(procedural_assets) if r.category == "refrigerator")
+    lo, hi = np.asarray(fridge.bounds[0]), np.asarray(fridge.bounds[1])
+    for part in fridge.parts:
+        base, _, start = robot_base_for_part(part, fridge.bounds)
+        assert start is None  # no kinematics given: the ready pose
+        # outside the fridge's footprint
+        assert not ((base[:2] > lo[:2]) & (base[:2] < hi[:2])).all()
+        path = handle_path(part)
+        assert np.allclose(path[0], part.handle_object)
+        dist = np.linalg.norm(path - (base + [0, 0, SHOULDER_HEIGHT]), axis=1)
+        assert dist.max() < REACH[1] + 0.1
+
+
 @pytest.mark.slow
-def test_scripted_solver_opens_procedural_drawer_and_door(procedural_assets: Path) -> None:
+def test_scripted_solver_opens_drawer_and_doors(procedural_assets: Path) -> None:
+    """The solver opens a drawer, a side-hinged microwave door, a bottom-hinged oven door
+    and a side-hinged fridge door in CPU simulation."""
     from sim_envs import FolderSource
     from tasks.solver import solve_part
 
-    src = FolderSource(procedural_assets)
-    desk = next(r for r in src if r.category == "desk")
-    microwave = next(r for r in src if r.category == "microwave")
-    res, env_id = solve_part(desk, "drawer_0", seed=0)
-    assert env_id == "OpenDrawer-v0" and res.success, res
-    res, env_id = solve_part(microwave, "door_0", seed=0)
-    assert env_id == "OpenDoor-v0" and res.success, res
+    src = {r.category: r for r in FolderSource(procedural_assets)}
+    for category, part, env_id in (
+        ("desk", "drawer_0", "OpenDrawer-v0"),
+        ("microwave", "door_0", "OpenDoor-v0"),
+        ("oven", "door_0", "OpenDoor-v0"),
+        ("refrigerator", "door_1", "OpenDoor-v0"),
+    ):
+        res, used = solve_part(src[category], part, seed=0)
+        assert used == env_id and res.success, (category, part, res)
 
 
 @pytest.mark.slow

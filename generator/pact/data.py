@@ -100,7 +100,11 @@ class Stage1Dataset(TorchDataset):
         self.part_count = np.asarray(counts, dtype=np.int64)  # (N,)
         log.info(
             "%s [%s]: %d objects, %d skipped (> %d parts)",
-            root, split, len(ids), len(self.skipped), max_parts,
+            root,
+            split,
+            len(ids),
+            len(self.skipped),
+            max_parts,
         )
 
     # --- raw access ---------------------------------------------------------------------

@@ -131,7 +131,9 @@ def part_slat_inputs(
     c, s = normalization[:3].astype(np.float64), float(normalization[3])
     rest = np.eye(4) if part.joint is None else part.joint.transform(part.joint.lower)
     pts = subsample_points(coords)  # (N, SUB^3, 3) normalized
-    d = part_sdf(part, pts.reshape(-1, 3) * s + c, rest, cutoff=1.5 * TRUNCATION * s) / s  # normalized units
+    d = (
+        part_sdf(part, pts.reshape(-1, 3) * s + c, rest, cutoff=1.5 * TRUNCATION * s) / s
+    )  # normalized units
     sdf = np.clip(d / TRUNCATION, -1.0, 1.0).reshape(len(coords), -1).astype(np.float32)
     centres = -0.5 + (coords + 0.5) / RESOLUTION
     if len(surface_points):
@@ -249,18 +251,96 @@ def build_cache(dataset: str | Path, out: str | Path, workers: int = 2) -> Path:
     return out
 
 
-def load_cache(out: str | Path) -> tuple[dict, list[dict[str, np.ndarray]]]:
-    """(manifest, one dict of arrays per shard) of a built cache."""
+def load_cache(out: str | Path, partial: bool = False) -> tuple[dict, list[dict[str, np.ndarray]]]:
+    """(manifest, one dict of arrays per shard) of a built cache.
+
+    ``partial``: a cache still being built is read as the shards finished so far.
+    """
     out = Path(out)
     meta_file = out / "manifest.json"
-    if not meta_file.is_file():
+    if meta_file.is_file():
+        meta = json.loads(meta_file.read_text())
+    elif partial:
+        names = sorted(p.name for p in out.glob("shard_*.npz") if ".tmp" not in p.name)
+        meta = {"shards": names}
+    else:
         raise SlatDataError(f"{out} has no manifest.json: build it with build_cache first")
-    meta = json.loads(meta_file.read_text())
     shards = []
     for name in meta["shards"]:
         with np.load(out / name) as z:
             shards.append({k: z[k] for k in z.files})
     return meta, shards
+
+
+class SlatObjects:
+    """The stage-2 training set in memory: SLAT cache + the dataset arrays stage 2 needs.
+
+    Object ``i`` is the i-th object of the dataset (shard order). ``max_parts`` caps the
+    slots kept (objects with more parts keep their first ``max_parts`` slots).
+    ``latents`` (set by the trainer after the SLAT VAE is trained): (M,) rows aligned with
+    the voxel arrays.
+    """
+
+    KEYS = (
+        "part_count",
+        "occupancy",
+        "joint_type",
+        "semantic",
+        "joint_origin",
+        "joint_axis",
+        "joint_range",
+    )
+
+    def __init__(
+        self,
+        cache: str | Path,
+        dataset: str | Path,
+        images: bool = True,
+        max_parts: int = 8,
+        partial: bool = False,
+    ) -> None:
+        dataset = Path(dataset)
+        meta, shards = load_cache(cache, partial)
+        self.max_parts = max_parts
+        keys = self.KEYS + (("images", "masks") if images else ())
+        arrays: dict[str, list[np.ndarray]] = {k: [] for k in keys}
+        coords, slot, sdf, rgb, offsets, ids = [], [], [], [], [0], []
+        for name, sh in zip(meta["shards"], shards, strict=True):
+            with np.load(dataset / name, allow_pickle=False) as z:
+                if list(z["object_ids"]) != list(sh["object_ids"]):
+                    raise SlatDataError(f"{name}: cache and dataset list different objects")
+                for k in keys:
+                    arrays[k].append(z[k][:, :max_parts] if k in self.KEYS[1:] else z[k])
+            keep = sh["slot"] < max_parts
+            n_keep = np.add.reduceat(keep, sh["offsets"][:-1]) if len(keep) else []
+            coords.append(sh["coords"][keep])
+            slot.append(sh["slot"][keep])
+            sdf.append(sh["sdf"][keep])
+            rgb.append(sh["rgb"][keep])
+            offsets.extend(offsets[-1] + np.cumsum(n_keep))
+            ids.extend(sh["object_ids"].tolist())
+        self.ids = ids
+        self.arrays = {k: np.concatenate(v) for k, v in arrays.items()}
+        self.arrays["part_count"] = np.minimum(self.arrays["part_count"], max_parts)
+        self.coords = np.concatenate(coords)  # (M, 3) uint8
+        self.slot = np.concatenate(slot)  # (M,) int8
+        self.sdf_q = np.concatenate(sdf)  # (M, SUB^3) uint8
+        self.rgb = np.concatenate(rgb)  # (M, 3) uint8
+        self.offsets = np.asarray(offsets, np.int64)  # (N + 1,)
+        self.latents: np.ndarray | None = None
+        log.info("stage-2 data: %d objects, %d token voxels", len(ids), len(self.coords))
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def rows(self, i: int) -> slice:
+        return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
+
+    def occupancy(self, i: int) -> np.ndarray:
+        """(max_parts, R, R, R) bool part occupancies of object i."""
+        from generator.data import unpack_occupancy
+
+        return unpack_occupancy(self.arrays["occupancy"][i], RESOLUTION)
 
 
 if __name__ == "__main__":

@@ -163,7 +163,8 @@ def save_stage1(
     stage-1 config, the latent statistics). Written under a temporary name, then renamed."""
     path = Path(path)
     tensors = {
-        f"{role}.{k}": v.detach().to("cpu", dtype if v.is_floating_point() else v.dtype)
+        f"{role}.{k}": v.detach()
+        .to("cpu", dtype if v.is_floating_point() else v.dtype)
         .contiguous()
         for role in ("image_encoder", "flow")
         for k, v in models[role].state_dict().items()

@@ -34,12 +34,14 @@ from __future__ import annotations
 import argparse
 import copy
 import csv
+import hashlib
+import json
 import logging
 import math
 import os
 import shutil
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -91,6 +93,7 @@ class Args:
     resume: bool = True
     threads: int | None = None  # torch intra-op threads per rank (None: torch's default)
     max_minutes: float | None = None  # stop (with a checkpoint) after this wall-clock
+    stop_after: int | None = None  # stop (with a checkpoint) at this step; resume later
     limit_objects: int | None = None  # use only the first N objects (tests)
     vae_dir: str | None = None  # frozen VAE for the flow; None: <out>/vae/checkpoint/ss_vae
 
@@ -156,7 +159,9 @@ def lr_at(step: int, base: float, args: Args, total: int) -> float:
     if args.schedule == "constant":
         return base
     progress = min(1.0, (step - args.warmup) / max(1, total - args.warmup))
-    return base * (args.min_lr_frac + (1 - args.min_lr_frac) * 0.5 * (1 + math.cos(math.pi * progress)))
+    return base * (
+        args.min_lr_frac + (1 - args.min_lr_frac) * 0.5 * (1 + math.cos(math.pi * progress))
+    )
 
 
 def step_generator(seed: int, step: int, stream: int, rank: int = 0) -> torch.Generator:
@@ -255,7 +260,9 @@ def _optimizer(params: list[nn.Parameter], lr: float, args: Args) -> torch.optim
     return torch.optim.AdamW(params, lr=lr, betas=(0.9, 0.99), weight_decay=args.weight_decay)
 
 
-def _resume(part_dir: Path, args: Args, optimizer: torch.optim.Optimizer) -> tuple[int, Path | None]:
+def _resume(
+    part_dir: Path, args: Args, optimizer: torch.optim.Optimizer
+) -> tuple[int, Path | None]:
     ckpt = find_checkpoint(part_dir) if args.resume else None
     if ckpt is None:
         return 0, None
@@ -266,8 +273,9 @@ def _resume(part_dir: Path, args: Args, optimizer: torch.optim.Optimizer) -> tup
     return int(state["step"]), ckpt
 
 
-def _out_of_time(t0: float, args: Args, d: Dist) -> bool:
+def _should_stop(t0: float, step: int, args: Args, d: Dist) -> bool:
     over = args.max_minutes is not None and time.time() - t0 > 60 * args.max_minutes
+    over = over or (args.stop_after is not None and step >= args.stop_after)
     if d.world > 1:  # every rank must agree, or the all-reduce deadlocks
         flag = torch.tensor([float(over)])
         dist.all_reduce(flag)
@@ -309,8 +317,8 @@ def evaluate_vae(vae: SparseStructureVAE, ds: Stage1Dataset, batch: int = 32) ->
     }
 
 
-def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> Path:
-    """Train the sparse-structure VAE; returns the final checkpoint folder."""
+def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, nn.Module]]:
+    """Train the sparse-structure VAE; returns the checkpoint folder and the model."""
     part_dir = Path(args.out_dir) / "vae"
     tcfg = cfg.vae_train
     B = args.batch_size or tcfg.batch_size
@@ -335,8 +343,15 @@ def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> Path:
     params = list(vae.parameters())
     logs = RunLog(part_dir, d.main, step)
     n_empty = int(round(args.empty_fraction * B))
-    log.info("VAE: %d train parts, %d val objects, batch %d x %d ranks, steps %d -> %d",
-             len(slots), val_ds.num_objects, B, d.world, step, total)
+    log.info(
+        "VAE: %d train parts, %d val objects, batch %d x %d ranks, steps %d -> %d",
+        len(slots),
+        val_ds.num_objects,
+        B,
+        d.world,
+        step,
+        total,
+    )
 
     def checkpoint() -> None:
         if d.main:
@@ -352,7 +367,9 @@ def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> Path:
     vae.train()
     while step < total:
         # the global batch (same on every rank), this rank's slice of it
-        pick = torch.randint(len(slots), (B * d.world,), generator=step_generator(args.seed, step, 0))
+        pick = torch.randint(
+            len(slots), (B * d.world,), generator=step_generator(args.seed, step, 0)
+        )
         pick = pick[d.rank * B : (d.rank + 1) * B].numpy()
         grids = np.stack([train_ds.part_grid(int(o), int(s)) for o, s in slots[pick]])
         grids[B - n_empty :] = False  # the empty-slot target
@@ -361,7 +378,9 @@ def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> Path:
         for g in opt.param_groups:
             g["lr"] = lr_at(step, lr, args, total)
         with _autocast(d.device, bf16):
-            loss, metrics = vae_loss(vae, occ, tcfg, generator=step_generator(args.seed, step, 1, d.rank))
+            loss, metrics = vae_loss(
+                vae, occ, tcfg, generator=step_generator(args.seed, step, 1, d.rank)
+            )
         opt.zero_grad(set_to_none=True)
         loss.backward()
         average_gradients(params, d.world)
@@ -375,21 +394,32 @@ def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> Path:
             t_log = now
             metrics.update(lr=opt.param_groups[0]["lr"], grad_norm=grad_norm, parts_per_s=rate)
             logs.write(step, metrics, "vae")
-            log.info("vae step %d loss %.4f iou %.3f kl %.3f (%.1f parts/s)",
-                     step, metrics["loss"], metrics["iou"], metrics["kl"], rate)
+            log.info(
+                "vae step %d loss %.4f iou %.3f kl %.3f (%.1f parts/s)",
+                step,
+                metrics["loss"],
+                metrics["iou"],
+                metrics["kl"],
+                rate,
+            )
         if d.main and (step % args.eval_every == 0 or step == total):
             ev = evaluate_vae(vae, val_ds)
             logs.write(step, ev, "vae_val")
-            log.info("vae step %d val iou %.4f part_iou %.4f empty %d",
-                     step, ev["iou"], ev["part_iou"], ev["empty_voxels"])
-        stop = _out_of_time(t0, args, d)
+            log.info(
+                "vae step %d val iou %.4f part_iou %.4f empty %d",
+                step,
+                ev["iou"],
+                ev["part_iou"],
+                ev["empty_voxels"],
+            )
+        stop = _should_stop(t0, step, args, d)
         if step % args.ckpt_every == 0 or step == total or stop:
             checkpoint()
         if stop:
-            log.info("stopping at step %d: max_minutes reached", step)
+            log.info("stopping at step %d (max_minutes / stop_after)", step)
             break
     logs.close()
-    return part_dir / "checkpoint" / "ss_vae"
+    return part_dir / "checkpoint" / "ss_vae", {"vae": vae}
 
 
 # --- flow -------------------------------------------------------------------------------
@@ -415,15 +445,13 @@ def latent_cache(
     used = cache[slots[:, 0], slots[:, 1]]  # (P, C, r, r, r)
     C = used.shape[1]
     per_c = used.transpose(0, 1).reshape(C, -1)
-    stats = LatentStats(
-        tuple(per_c.mean(1).tolist()), tuple(per_c.std(1).clamp_min(1e-3).tolist())
-    )
+    stats = LatentStats(tuple(per_c.mean(1).tolist()), tuple(per_c.std(1).clamp_min(1e-3).tolist()))
     return cache, stats
 
 
-def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
-    """Train the image encoder + part-aware flow on frozen-VAE latents; returns the final
-    stage-1 checkpoint folder."""
+def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, nn.Module]]:
+    """Train the image encoder + part-aware flow on frozen-VAE latents; returns the
+    stage-1 checkpoint folder and the models."""
     part_dir = Path(args.out_dir) / "flow"
     tcfg = cfg.flow_train
     B = args.batch_size or tcfg.batch_size
@@ -440,11 +468,31 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
     train_ds = Stage1Dataset(args.data_dir, T, "train", args.val_fraction, S, args.limit_objects)
     val_ds = Stage1Dataset(args.data_dir, T, "val", args.val_fraction, S, args.limit_objects)
     t_cache = time.time()
-    cache, stats = latent_cache(vae, train_ds)
-    val_cache, _ = latent_cache(vae, val_ds)
-    cache, val_cache = stats.normalize(cache), stats.normalize(val_cache)
-    log.info("latent cache: %d + %d objects in %.1fs; std per channel %s", len(cache),
-             len(val_cache), time.time() - t_cache, [round(s, 3) for s in stats.std])
+    cache_file = part_dir / "latent_cache.pt"
+    key = {  # what the cached latents depend on
+        "vae": hashlib.sha256((vae_dir / "model.safetensors").read_bytes()).hexdigest(),
+        "data": str(Path(args.data_dir).resolve()),
+        "objects": [train_ds.object_ids, val_ds.object_ids],
+    }
+    saved = torch.load(cache_file, weights_only=False) if cache_file.is_file() else None
+    if saved is not None and saved["key"] == key:
+        cache, val_cache, stats = saved["train"], saved["val"], LatentStats(**saved["stats"])
+    else:
+        cache, stats = latent_cache(vae, train_ds)
+        val_cache, _ = latent_cache(vae, val_ds)
+        cache, val_cache = stats.normalize(cache), stats.normalize(val_cache)
+        if d.main:  # a cache for resumed runs; written under a temporary name
+            part_dir.mkdir(parents=True, exist_ok=True)
+            blob = {"key": key, "train": cache, "val": val_cache, "stats": asdict(stats)}
+            torch.save(blob, cache_file.with_suffix(".tmp"))
+            cache_file.with_suffix(".tmp").replace(cache_file)
+    log.info(
+        "latent cache: %d + %d objects in %.1fs; std per channel %s",
+        len(cache),
+        len(val_cache),
+        time.time() - t_cache,
+        [round(s, 3) for s in stats.std],
+    )
 
     torch.manual_seed(args.seed)
     models = build_stage1(cfg)
@@ -458,8 +506,15 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
         encoder.load_state_dict(loaded["image_encoder"].state_dict())
         flow.load_state_dict(loaded["flow"].state_dict())
     logs = RunLog(part_dir, d.main, step)
-    log.info("flow: %d train objects x %d views, batch %d x %d ranks, steps %d -> %d",
-             train_ds.num_objects, train_ds.views, B, d.world, step, total)
+    log.info(
+        "flow: %d train objects x %d views, batch %d x %d ranks, steps %d -> %d",
+        train_ds.num_objects,
+        train_ds.views,
+        B,
+        d.world,
+        step,
+        total,
+    )
 
     # a fixed validation batch: (object, view) pairs, t and noise from a fixed seed
     g_val = step_generator(args.seed, 0, 7)
@@ -471,9 +526,15 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
         with torch.no_grad(), _autocast(d.device, bf16):
             cond = encoder(val_batch["image"].to(d.device))
             x0 = val_cache[val_batch["object"]].to(d.device)
-            _, m = flow_loss(flow, x0, cond, val_batch["mask"].to(d.device),
-                             val_batch["exists"].to(d.device), tcfg,
-                             generator=step_generator(args.seed, 0, 8))
+            _, m = flow_loss(
+                flow,
+                x0,
+                cond,
+                val_batch["mask"].to(d.device),
+                val_batch["exists"].to(d.device),
+                tcfg,
+                generator=step_generator(args.seed, 0, 8),
+            )
         encoder.train(), flow.train()
         return m
 
@@ -481,8 +542,11 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
         if d.main:
             save_training_checkpoint(
                 part_dir / "checkpoint",
-                {"stage1": lambda p: save_stage1(models, cfg, p, stats,
-                                                 extra={"step": step, "vae": str(vae_dir)})},
+                {
+                    "stage1": lambda p: save_stage1(
+                        models, cfg, p, stats, extra={"step": step, "vae": str(vae_dir)}
+                    )
+                },
                 opt,
                 step,
             )
@@ -491,7 +555,9 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
     t0 = t_log = time.time()
     encoder.train(), flow.train()
     while step < total:
-        pick = torch.randint(len(train_ds), (B * d.world,), generator=step_generator(args.seed, step, 0))
+        pick = torch.randint(
+            len(train_ds), (B * d.world,), generator=step_generator(args.seed, step, 0)
+        )
         batch = train_ds.batch(pick[d.rank * B : (d.rank + 1) * B].tolist())
         x0 = cache[batch["object"]].to(d.device)  # (B, T, C, r, r, r)
 
@@ -499,9 +565,15 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
             g["lr"] = lr_at(step, lr, args, total)
         with _autocast(d.device, bf16):
             cond = encoder(batch["image"].to(d.device))  # (B, N_img, D_img)
-            loss, metrics = flow_loss(flow, x0, cond, batch["mask"].to(d.device),
-                                      batch["exists"].to(d.device), tcfg,
-                                      generator=step_generator(args.seed, step, 1, d.rank))
+            loss, metrics = flow_loss(
+                flow,
+                x0,
+                cond,
+                batch["mask"].to(d.device),
+                batch["exists"].to(d.device),
+                tcfg,
+                generator=step_generator(args.seed, step, 1, d.rank),
+            )
         opt.zero_grad(set_to_none=True)
         loss.backward()
         average_gradients(params, d.world)
@@ -515,23 +587,35 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> Path:
             t_log = now
             metrics.update(lr=opt.param_groups[0]["lr"], grad_norm=grad_norm, samples_per_s=rate)
             logs.write(step, metrics, "flow")
-            log.info("flow step %d loss %.4f mse %.4f exists %.4f (%.2f samples/s)",
-                     step, metrics["loss"], metrics["mse"], metrics["exists_bce"], rate)
+            log.info(
+                "flow step %d loss %.4f mse %.4f exists %.4f (%.2f samples/s)",
+                step,
+                metrics["loss"],
+                metrics["mse"],
+                metrics["exists_bce"],
+                rate,
+            )
         if d.main and (step % args.eval_every == 0 or step == total):
             ev = val_loss()
             logs.write(step, ev, "flow_val")
             log.info("flow step %d val loss %.4f mse %.4f", step, ev["loss"], ev["mse"])
-        stop = _out_of_time(t0, args, d)
+        stop = _should_stop(t0, step, args, d)
         if step % args.ckpt_every == 0 or step == total or stop:
             checkpoint()
         if stop:
-            log.info("stopping at step %d: max_minutes reached", step)
+            log.info("stopping at step %d (max_minutes / stop_after)", step)
             break
     logs.close()
-    return part_dir / "checkpoint" / "stage1"
+    return part_dir / "checkpoint" / "stage1", models
 
 
 # --- entry points -----------------------------------------------------------------------
+
+
+@dataclass
+class Stage1Run:
+    checkpoints: dict[str, Path] = field(default_factory=dict)  # role -> checkpoint folder
+    models: dict[str, nn.Module] = field(default_factory=dict)  # role -> trained module
 
 
 def train_stage1(
@@ -542,12 +626,19 @@ def train_stage1(
     steps: int | None = None,
     resume: bool = True,
     **overrides: Any,
-) -> dict[str, Path]:
-    """Train stage 1 (``part`` = "vae", "flow" or "all"); returns the final checkpoint
-    folders by role (``ss_vae``, ``stage1``). Works alone or under torchrun; other
-    ``Args`` fields can be passed as keywords."""
-    args = Args(data_dir=str(data_dir), out_dir=str(out_dir), config=config, part=part,
-                steps=steps, resume=resume, **overrides)
+) -> Stage1Run:
+    """Train stage 1 (``part`` = "vae", "flow" or "all"). Works alone or under torchrun;
+    other ``Args`` fields can be passed as keywords. Returns the checkpoint folders by
+    role (``ss_vae``: the VAE, ``stage1``: image encoder + flow) and the trained models."""
+    args = Args(
+        data_dir=str(data_dir),
+        out_dir=str(out_dir),
+        config=config,
+        part=part,
+        steps=steps,
+        resume=resume,
+        **overrides,
+    )
     if args.part not in ("vae", "flow", "all"):
         raise ValueError(f"part must be 'vae', 'flow' or 'all', got {args.part!r}")
     if args.threads:
@@ -557,14 +648,16 @@ def train_stage1(
     if d.main:
         Path(args.out_dir).mkdir(parents=True, exist_ok=True)
         (Path(args.out_dir) / f"args_{args.part}.json").write_text(
-            __import__("json").dumps(asdict(args) | {"world": d.world}, indent=2)
+            json.dumps(asdict(args) | {"world": d.world}, indent=2)
         )
-    out: dict[str, Path] = {}
+    run = Stage1Run()
     if args.part in ("vae", "all"):
-        out["ss_vae"] = train_vae(args, cfg, d)
+        run.checkpoints["ss_vae"], models = train_vae(args, cfg, d)
+        run.models |= models
     if args.part in ("flow", "all"):
-        out["stage1"] = train_flow(args, cfg, d)
-    return out
+        run.checkpoints["stage1"], models = train_flow(args, cfg, d)
+        run.models |= models
+    return run
 
 
 def export_weights(
@@ -587,8 +680,9 @@ def _parse() -> Args:
     for f in fields(Args):
         flag = names.get(f.name, "--" + f.name.replace("_", "-"))
         if f.type in ("bool", "bool | None"):
-            p.add_argument(flag, dest=f.name, default=f.default,
-                           action=argparse.BooleanOptionalAction)
+            p.add_argument(
+                flag, dest=f.name, default=f.default, action=argparse.BooleanOptionalAction
+            )
         else:
             kind = {"int": int, "float": float}.get(str(f.type).split(" ")[0], str)
             p.add_argument(flag, dest=f.name, default=f.default, type=kind)
@@ -598,10 +692,12 @@ def _parse() -> Args:
 def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     args = _parse()
-    kw = {k: v for k, v in asdict(args).items() if k not in
-          ("data_dir", "out_dir", "config", "part", "steps", "resume")}
-    train_stage1(args.data_dir, args.out_dir, args.config, args.part, args.steps,
-                 args.resume, **kw)
+    kw = {
+        k: v
+        for k, v in asdict(args).items()
+        if k not in ("data_dir", "out_dir", "config", "part", "steps", "resume")
+    }
+    train_stage1(args.data_dir, args.out_dir, args.config, args.part, args.steps, args.resume, **kw)
     if dist.is_initialized():
         dist.destroy_process_group()
 

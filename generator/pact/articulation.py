@@ -1,0 +1,249 @@
+"""Articulation regression from denoiser features (PAct paper sec. 4.3.2 and supp. B).
+
+For part i, H_i^t (L_i, D) are the last-block token features of its tokens at sampling
+step t. Over the selected steps T (the last S of the sampler's steps)
+
+    H_i = mean_{t in T} H_i^t                          (L_i, D)
+    h_i = [MeanPool(H_i) || MaxPool(H_i)]              (2 D,)
+    A_i = g_phi(h_i)                                   6-layer MLP
+
+predicts joint type logits (fixed / prismatic / revolute), semantic logits
+(base / drawer / door / lid), origin (3), unit axis (3) and range (2) with
+``upper = lower + softplus(delta) + RANGE_EPS`` so that lower < upper always.
+
+Training uses the features of the single training timestep (no averaging), the loss
+L_art = CE(type) + CE(semantic) + ||origin||^2 + ||axis||^2 + ||range||^2 over movable
+parts. At sampling, ``FeatureAggregator`` is the sampler callback; it records which step
+indices it averaged. ``project_origin_to_aabb`` is the post-processing of revolute origins
+(supp. B): the closest point on the part's AABB *surface*.
+
+The head takes any feature width, so the same code regresses articulation from stage-1
+features (``pool_slots``: stage 1 has a fixed L tokens per slot) for the ablation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+from .registry import register
+
+HEAD_JOINT_TYPES = ("fixed", "prismatic", "revolute")  # dataset joint_type index - 1
+HEAD_SEMANTICS = ("base", "drawer", "door", "lid")
+RANGE_EPS = 1e-3
+
+
+@dataclass
+class ArticulationHeadConfig:
+    in_dim: int = 160  # D of the features; the MLP input is 2 D
+    hidden: int = 512  # paper: 512
+    layers: int = 6  # linear layers of g_phi
+    num_types: int = 3
+    num_semantics: int = 4
+
+
+class ArticulationOutput(NamedTuple):
+    type_logits: torch.Tensor  # (..., 3)
+    semantic_logits: torch.Tensor  # (..., 4)
+    origin: torch.Tensor  # (..., 3)
+    axis: torch.Tensor  # (..., 3), unit
+    range: torch.Tensor  # (..., 2), lower < upper
+
+
+@register("articulation_head", ArticulationHeadConfig)
+class ArticulationHead(nn.Module):
+    def __init__(self, cfg: ArticulationHeadConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        dims = [2 * cfg.in_dim] + [cfg.hidden] * (cfg.layers - 1)
+        layers: list[nn.Module] = [nn.LayerNorm(2 * cfg.in_dim)]
+        for a, b in zip(dims[:-1], dims[1:], strict=True):
+            layers += [nn.Linear(a, b), nn.SiLU()]
+        self.trunk = nn.Sequential(*layers)
+        self.n_out = cfg.num_types + cfg.num_semantics + 3 + 3 + 2
+        self.out = nn.Linear(cfg.hidden, self.n_out)  # the 6th linear layer
+
+    def forward(self, pooled: torch.Tensor) -> ArticulationOutput:
+        """pooled (..., 2 D) -> articulation parameters (always valid)."""
+        y = self.out(self.trunk(pooled)).float()
+        a, b = self.cfg.num_types, self.cfg.num_types + self.cfg.num_semantics
+        origin, axis_raw, rng = y[..., b : b + 3], y[..., b + 3 : b + 6], y[..., b + 6 : b + 8]
+        # a zero raw axis would have no direction: fall back to +x
+        norm = axis_raw.norm(dim=-1, keepdim=True)
+        fallback = torch.tensor([1.0, 0.0, 0.0], device=y.device).expand_as(axis_raw)
+        axis = torch.where(norm > 1e-6, axis_raw / norm.clamp(min=1e-6), fallback)
+        lower = rng[..., 0]
+        upper = lower + F.softplus(rng[..., 1]) + RANGE_EPS
+        return ArticulationOutput(
+            y[..., :a], y[..., a:b], origin, axis, torch.stack([lower, upper], -1)
+        )
+
+
+# --------------------------------------------------------------------------- pooling
+
+
+def pool_parts(
+    features: torch.Tensor, slot: torch.Tensor, valid: torch.Tensor, max_parts: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """[MeanPool || MaxPool] over each part's tokens.
+
+    features (B, L, D), slot (B, L) long, valid (B, L) bool ->
+    pooled (B, K, 2 D) (zeros for absent parts), present (B, K) bool.
+    """
+    feats = features.float()
+    out, present = [], []
+    for k in range(max_parts):
+        m = (slot == k) & valid  # (B, L)
+        n = m.sum(1)  # (B,)
+        mean = (feats * m[..., None]).sum(1) / n.clamp(min=1)[:, None]  # (B, D)
+        mx = feats.masked_fill(~m[..., None], float("-inf")).amax(1)  # (B, D)
+        mx = torch.where(n[:, None] > 0, mx, torch.zeros_like(mx))
+        out.append(torch.cat([mean, mx], dim=-1))
+        present.append(n > 0)
+    return torch.stack(out, 1), torch.stack(present, 1)
+
+
+def pool_slots(features: torch.Tensor) -> torch.Tensor:
+    """Stage-1 features (B, K, L, D) (L tokens per slot) -> (B, K, 2 D)."""
+    f = features.float()
+    return torch.cat([f.mean(2), f.amax(2)], dim=-1)
+
+
+class FeatureAggregator:
+    """Sampler callback averaging the last-block features over the last ``S`` steps.
+
+    ``callback(step_index, t, features)``; ``mean()`` returns the average over the steps
+    read; ``used`` lists their indices. ``keep_all`` also stores every step's features
+    (for the S ablation on one sampling run).
+    """
+
+    def __init__(self, total_steps: int, last: int, keep_all: bool = False) -> None:
+        if not 1 <= last <= total_steps:
+            raise ValueError(f"S={last} must be in 1..{total_steps} (the sampler's steps)")
+        self.total, self.last, self.keep_all = total_steps, last, keep_all
+        self.used: list[int] = []
+        self.all: list[torch.Tensor] = []
+        self._sum: torch.Tensor | None = None
+
+    def __call__(self, step_index: int, t: float, features: torch.Tensor) -> None:
+        if self.keep_all:
+            self.all.append(features.detach().float().cpu())
+        if step_index < self.total - self.last:
+            return
+        f = features.detach().float()
+        self._sum = f.clone() if self._sum is None else self._sum + f
+        self.used.append(step_index)
+
+    def mean(self) -> torch.Tensor:
+        if self._sum is None:
+            raise RuntimeError("no features collected: was the aggregator passed as callback?")
+        return self._sum / len(self.used)
+
+
+def aggregate_last(all_steps: list[torch.Tensor], last: int) -> torch.Tensor:
+    """Mean of the last ``last`` entries of per-step features (same as the aggregator)."""
+    return torch.stack(all_steps[len(all_steps) - last :]).mean(0)
+
+
+# --------------------------------------------------------------------------- loss
+
+
+class ArticulationTargets(NamedTuple):
+    """Per part slot (B, K): dataset joint_type (0 none, 1 fixed, 2 prismatic, 3 revolute),
+    semantic, origin (3), axis (3), range (2)."""
+
+    joint_type: torch.Tensor
+    semantic: torch.Tensor
+    origin: torch.Tensor
+    axis: torch.Tensor
+    range: torch.Tensor
+
+
+def articulation_loss(
+    out: ArticulationOutput, tgt: ArticulationTargets, present: torch.Tensor
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """L_art over the movable parts (slots with a joint) that have tokens."""
+    m = present & (tgt.joint_type > 0)  # (B, K)
+    if not m.any():
+        zero = out.origin.sum() * 0.0
+        return zero, {"art": 0.0}
+    ce_t = F.cross_entropy(out.type_logits[m], (tgt.joint_type[m] - 1).long())
+    ce_s = F.cross_entropy(out.semantic_logits[m], tgt.semantic[m].long())
+    l_o = (out.origin[m] - tgt.origin[m]).pow(2).sum(-1).mean()
+    l_a = (out.axis[m] - tgt.axis[m]).pow(2).sum(-1).mean()
+    l_r = (out.range[m] - tgt.range[m]).pow(2).sum(-1).mean()
+    loss = ce_t + ce_s + l_o + l_a + l_r
+    with torch.no_grad():
+        acc = (out.type_logits[m].argmax(-1) == tgt.joint_type[m] - 1).float().mean()
+    return loss, {
+        "art": loss.item(),
+        "type_ce": ce_t.item(),
+        "sem_ce": ce_s.item(),
+        "origin_l2": l_o.item(),
+        "axis_l2": l_a.item(),
+        "range_l2": l_r.item(),
+        "type_acc": acc.item(),
+    }
+
+
+# --------------------------------------------------------------------------- post-processing
+
+
+def project_origin_to_aabb(origin: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Closest point on the SURFACE of the box [lo, hi] to ``origin`` (3,).
+
+    Outside the box: the clamped point. Inside: the point moved along the axis of the
+    nearest face onto that face.
+    """
+    p = np.asarray(origin, float)
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    q = np.clip(p, lo, hi)
+    if not np.array_equal(q, p):
+        return q
+    d = np.stack([p - lo, hi - p])  # (2, 3) distances to the six faces
+    side, axis = np.unravel_index(np.argmin(d), d.shape)
+    q = p.copy()
+    q[axis] = lo[axis] if side == 0 else hi[axis]
+    return q
+
+
+@dataclass
+class PartJoint:
+    """Decoded articulation of one part (numpy, normalized frame)."""
+
+    type: str
+    semantic: str
+    origin: np.ndarray
+    axis: np.ndarray
+    lower: float
+    upper: float
+    type_probs: np.ndarray
+
+
+def decode_joint(out: ArticulationOutput, index: tuple[int, ...]) -> PartJoint:
+    """Pick one part's parameters out of a batched ``ArticulationOutput``."""
+    probs = torch.softmax(out.type_logits[index].float(), -1).cpu().numpy()
+    t = int(probs.argmax())
+    s = int(out.semantic_logits[index][1:].argmax()) + 1  # a movable part is never "base"
+    r = out.range[index].cpu().numpy().astype(float)
+    return PartJoint(
+        type=HEAD_JOINT_TYPES[t],
+        semantic=HEAD_SEMANTICS[s],
+        origin=out.origin[index].cpu().numpy().astype(float),
+        axis=out.axis[index].cpu().numpy().astype(float),
+        lower=float(r[0]),
+        upper=float(r[1]),
+        type_probs=probs,
+    )
+
+
+def postprocess_joint(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJoint:
+    """Revolute origins projected onto the part's AABB surface (supp. B); others kept."""
+    if joint.type == "revolute":
+        joint.origin = project_origin_to_aabb(joint.origin, lo, hi)
+    return joint

@@ -1,0 +1,363 @@
+"""``PActGenerator``: the full PAct chain as a Generator (generator/interface.py).
+
+image (+ optional part mask) -> stage 1 (part-decomposed sparse structure: one R = 32
+occupancy per part slot, ``Stage1Generator.predict_parts`` with the shipped stage-1
+checkpoints) -> token voxels per part -> stage 2 (structure-conditioned flow, Euler + CFG,
+last-block features collected by a ``FeatureAggregator`` over the last S steps) -> SLAT
+decode (fine SDF + RGB per token voxel) -> marching cubes per part -> articulation head on
+the aggregated features (+ revolute origins projected onto the part's AABB surface) ->
+``ArticulatedObject`` in the normalized frame (``scale`` None; a ``height`` hint in metres
+sets ``scale`` = height / the object's z extent).
+
+Slot 0 is the base; slots 1.. are movable parts named ``<semantic>_<slot>``. Without
+stage-1 checkpoints only ``generate_from_occupancy`` (teacher forcing with given part
+voxels) works; ``generate`` raises ``PActWeightsError``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import trimesh
+
+from generator.articulated import ArticulatedObject, Joint, Part
+
+from .articulation import (
+    ArticulationHead,
+    aggregate_last,
+    decode_joint,
+    pool_parts,
+    pool_slots,
+    postprocess_joint,
+)
+from .checkpoint import load_checkpoint
+from .slat_vae import decode_latents, decode_part_mesh
+from .stage2 import (
+    Stage2Config,
+    Stage2SamplerConfig,
+    collate,
+    config_from_dict,
+    sample_stage2,
+    tokenize,
+    untokenize,
+    voxels_from_occupancy,
+)
+
+log = logging.getLogger(__name__)
+
+WEIGHTS_DIR = Path(__file__).parent / "weights"
+VERSION = "pact-small-1"
+DEFAULT_COLOR = (180, 180, 180, 255)
+
+
+class PActWeightsError(FileNotFoundError):
+    """Checkpoints missing; the message says which folder and how to produce it."""
+
+
+@dataclass
+class PActRun:
+    """Everything one generation produced before assembly (for ablations).
+
+    occupancy (K, R, R, R) bool per slot; meshes per slot (None: no surface); features_2
+    per sampling step, each (L, D) (stage 2 last block); tokens' slot/valid for pooling;
+    features_1 per stage-1 step (K, L1, D1) or empty (teacher forcing).
+    """
+
+    occupancy: np.ndarray
+    meshes: dict[int, trimesh.Trimesh | None]
+    features_2: list[torch.Tensor]
+    slot: torch.Tensor
+    valid: torch.Tensor
+    features_1: list[torch.Tensor] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _square_resize(image: np.ndarray, size: int) -> torch.Tensor:
+    """(H, W, 3) uint8 -> (1, 3, size, size) in [0, 1]; non-square images are padded."""
+    image = np.asarray(image)[..., :3]
+    h, w = image.shape[:2]
+    if h != w:
+        s = max(h, w)
+        pad = np.zeros((s, s, 3), np.uint8)
+        pad[(s - h) // 2 : (s - h) // 2 + h, (s - w) // 2 : (s - w) // 2 + w] = image
+        image = pad
+    img = torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1)[None].float() / 255.0
+    if img.shape[-1] != size:
+        img = F.interpolate(img, size=(size, size), mode="bilinear", antialias=True)
+    return img.clamp(0, 1)
+
+
+def _load_fp32(path: Path, device: str) -> torch.nn.Module:
+    if not (path / "config.json").is_file():
+        raise PActWeightsError(
+            f"{path}: no checkpoint; train it with `python -m generator.pact.train_stage2`"
+        )
+    return load_checkpoint(path, device).float().eval()
+
+
+class PActGenerator:
+    """PAct (stage 1 + stage 2 + articulation head) behind the Generator interface."""
+
+    name = "pact"
+
+    def __init__(
+        self,
+        models: dict[str, torch.nn.Module],
+        cfg: Stage2Config,
+        stage1: Any | None = None,
+        *,
+        sampler: Stage2SamplerConfig | None = None,
+        seed: int = 0,
+        version: str = VERSION,
+        device: torch.device | str = "cpu",
+        stage1_head: ArticulationHead | None = None,
+    ) -> None:
+        self.device = torch.device(device)
+        self.models = {k: m.to(self.device).eval() for k, m in models.items()}
+        self.cfg = cfg
+        self.stage1 = stage1
+        self.stage1_head = None if stage1_head is None else stage1_head.to(self.device).eval()
+        self.sampler = sampler or cfg.sampler
+        self.seed = seed
+        self.version = version
+        self.timings: dict[str, float] = {}
+
+    @classmethod
+    def load(cls, folder: str | Path, device: str | None = None, **kwargs: Any) -> PActGenerator:
+        """Stage 2 from ``folder/slat_vae`` and ``folder/stage2/{image_encoder,flow,head}``;
+        stage 1 from ``folder/ss_vae`` + ``folder/stage1`` when present."""
+        folder = Path(folder)
+        device = device or ("cuda" if torch.cuda.is_available() else "cpu")
+        models = {"vae": _load_fp32(folder / "slat_vae", device)}
+        for role in ("image_encoder", "flow", "head"):
+            models[role] = _load_fp32(folder / "stage2" / role, device)
+        cfg = config_from_dict(
+            {
+                "vae": vars(models["vae"].cfg),
+                "image_encoder": {**vars(models["image_encoder"].cfg), "weights": None},
+                "flow": vars(models["flow"].cfg),
+                "head": vars(models["head"].cfg),
+            }
+        )
+        stage1 = None
+        if (folder / "stage1").is_dir() and (folder / "ss_vae").is_dir():
+            from .stage1_generator import Stage1Generator
+
+            stage1 = Stage1Generator.load(folder, device=device, seed=kwargs.get("seed", 0))
+        else:
+            log.warning("%s: no stage-1 checkpoints; only generate_from_occupancy works", folder)
+        s1_head = None
+        if (folder / "stage1_head" / "config.json").is_file():
+            s1_head = _load_fp32(folder / "stage1_head", device)
+        digest = hashlib.sha256((folder / "stage2" / "flow" / "model.safetensors").read_bytes())
+        kwargs.setdefault("version", f"{VERSION}-{digest.hexdigest()[:10]}")
+        return cls(models, cfg, stage1, device=device, stage1_head=s1_head, **kwargs)
+
+    @classmethod
+    def default(cls, **kwargs: Any) -> PActGenerator:
+        """The shipped small model (generator/pact/weights/small); CUDA when present."""
+        return cls.load(WEIGHTS_DIR / "small", **kwargs)
+
+    # --- the chain ------------------------------------------------------------------------
+
+    def stage1_parts(
+        self, image: np.ndarray, mask: np.ndarray | None
+    ) -> tuple[np.ndarray, list[torch.Tensor]]:
+        """Stage 1: part occupancies (K, R, R, R) and its per-step last-block features."""
+        if self.stage1 is None:
+            raise PActWeightsError(
+                "stage-1 checkpoints (weights/small/ss_vae, weights/small/stage1) are missing; "
+                "use generate_from_occupancy or train stage 1"
+            )
+        from .flow import sample
+        from .stage1 import LatentStats
+
+        s1 = self.stage1
+        img, m, _, _ = s1.inputs(image, mask)
+        feats: list[torch.Tensor] = []
+        gen = torch.Generator(device=self.device).manual_seed(self.seed)
+        with torch.no_grad():
+            cond = s1.models["image_encoder"](img)
+            latents, exists_logits = sample(
+                s1.models["flow"],
+                cond,
+                m,
+                s1.sampler,
+                gen,
+                callback=lambda i, t, f: feats.append(f[0].float().cpu()),
+            )
+            stats = s1.latent_stats or LatentStats()
+            occ = s1.models["vae"].decode_parts(stats.denormalize(latents)) > 0
+            exists = torch.sigmoid(exists_logits) > 0.5
+        occ = (occ & exists[..., None, None, None])[0].cpu().numpy()
+        K = self.cfg.flow.max_parts
+        out = np.zeros((K, *occ.shape[1:]), bool)
+        out[: min(K, len(occ))] = occ[:K]
+        return out, feats
+
+    def run(
+        self,
+        image: np.ndarray,
+        mask: np.ndarray | None = None,
+        occupancy: np.ndarray | None = None,
+    ) -> PActRun:
+        """Stage 1 (unless ``occupancy`` (K, R, R, R) is given), stage 2, decode."""
+        timings: dict[str, float] = {}
+        t = time.perf_counter()
+        feats1: list[torch.Tensor] = []
+        if occupancy is None:
+            occupancy, feats1 = self.stage1_parts(image, mask)
+            timings["stage1"] = time.perf_counter() - t
+        occupancy = np.asarray(occupancy, bool)[: self.cfg.flow.max_parts]
+        t = time.perf_counter()
+        img = _square_resize(image, self.cfg.image_encoder.image_size).to(self.device)
+        with torch.no_grad():
+            cond = self.models["image_encoder"](img)  # (1, N_img, D_img)
+        timings["encode"] = time.perf_counter() - t
+        t = time.perf_counter()
+        coords, slot = voxels_from_occupancy(occupancy)
+        meshes: dict[int, trimesh.Trimesh | None] = {}
+        if len(coords) == 0:
+            return PActRun(occupancy, {}, [], torch.zeros(1, 0), torch.zeros(1, 0), feats1, timings)
+        toks = tokenize(coords, slot, occupancy, self.cfg.flow)
+        batch = collate([toks], self.cfg.flow.max_tokens).to(self.device)
+        feats2: list[torch.Tensor] = []
+        gen = torch.Generator(device=self.device).manual_seed(self.seed)
+        x = sample_stage2(
+            self.models["flow"],
+            batch,
+            cond,
+            self.sampler,
+            gen,
+            callback=lambda i, t_, f: feats2.append(f[0].float().cpu()),
+        )
+        timings["stage2"] = time.perf_counter() - t
+        t = time.perf_counter()
+        z = untokenize(x[0].float().cpu().numpy(), toks, self.cfg.flow.latent_channels)
+        for k in range(len(occupancy)):
+            sel = slot == k
+            if not sel.any():
+                continue
+            occ_k = torch.from_numpy(occupancy[k])
+            sdf, rgb = decode_latents(
+                self.models["vae"], torch.from_numpy(coords[sel]), torch.from_numpy(z[sel]), occ_k
+            )
+            meshes[k] = decode_part_mesh(coords[sel], sdf, rgb, occupancy[k])
+        timings["decode"] = time.perf_counter() - t
+        return PActRun(
+            occupancy, meshes, feats2, batch.slot[:1].cpu(), batch.valid[:1].cpu(), feats1, timings
+        )
+
+    def articulation(
+        self, run: PActRun, agg_steps: int | None = None, source: str = "stage2"
+    ) -> list[Any]:
+        """Per slot (index k) the decoded joint (``PartJoint``) or None, from the last
+        ``agg_steps`` steps' features of stage 2 (default) or stage 1."""
+        S = agg_steps or self.sampler.agg_steps
+        K = self.cfg.flow.max_parts
+        with torch.no_grad():
+            if source == "stage2":
+                if not run.features_2:
+                    return [None] * K
+                H = aggregate_last(run.features_2, S)[None].to(self.device)  # (1, L, D)
+                pooled, present = pool_parts(
+                    H, run.slot.to(self.device), run.valid.to(self.device), K
+                )
+                out = self.models["head"](pooled)
+            else:
+                if self.stage1_head is None or not run.features_1:
+                    raise PActWeightsError("no stage-1 articulation head / stage-1 features")
+                H = aggregate_last(run.features_1, S)[None].to(self.device)  # (1, K1, L1, D1)
+                pooled = pool_slots(H)[:, :K]
+                present = torch.ones(pooled.shape[:2], dtype=torch.bool, device=self.device)
+                out = self.stage1_head(pooled)
+        return [
+            decode_joint(out, (0, k)) if bool(present[0, k]) else None
+            for k in range(pooled.shape[1])
+        ]
+
+    def assemble(
+        self,
+        run: PActRun,
+        hints: dict[str, Any] | None = None,
+        agg_steps: int | None = None,
+        source: str = "stage2",
+    ) -> ArticulatedObject:
+        """Meshes + articulation (post-processed) -> ArticulatedObject."""
+        hints = hints or {}
+        t = time.perf_counter()
+        joints = self.articulation(run, agg_steps, source)
+        meshes = {k: m for k, m in run.meshes.items() if m is not None and len(m.faces)}
+        for k in range(len(run.occupancy)):  # parts without a surface: their voxel box
+            if k not in meshes and run.occupancy[k].any():
+                idx = np.argwhere(run.occupancy[k])
+                lo, hi = -0.5 + idx.min(0) / 32.0, -0.5 + (idx.max(0) + 1) / 32.0
+                box = trimesh.creation.box(hi - lo)
+                box.apply_translation((lo + hi) / 2)
+                box.visual.vertex_colors = np.tile(DEFAULT_COLOR, (len(box.vertices), 1))
+                meshes[k] = box
+        if 0 not in meshes:
+            base = trimesh.creation.box((1.0, 1.0, 1.0))
+            base.visual.vertex_colors = np.tile(DEFAULT_COLOR, (len(base.vertices), 1))
+            meshes = {0: base}
+        parts = [Part("base", "base", meshes[0])]
+        for k in sorted(meshes):
+            if k == 0:
+                continue
+            pj = joints[k] if k < len(joints) else None
+            if pj is None:
+                parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
+                continue
+            lo, hi = meshes[k].bounds
+            pj = postprocess_joint(pj, lo, hi)
+            if pj.type == "fixed":
+                joint = Joint("fixed", origin=pj.origin, axis=pj.axis)
+            else:
+                joint = Joint(pj.type, pj.origin, pj.axis, pj.lower, pj.upper)
+            parts.append(Part(f"{pj.semantic}_{k}", pj.semantic, meshes[k], joint))
+        scale = None
+        if hints.get("height"):
+            b = np.array([p.mesh.bounds for p in parts])
+            scale = float(hints["height"]) / float(b[:, 1, 2].max() - b[:, 0, 2].min())
+        obj = ArticulatedObject(
+            parts,
+            category=str(hints.get("category", "unknown")),
+            scale=scale,
+            provenance={
+                "generator": self.name,
+                "generator_version": self.version,
+                "seed": self.seed,
+                "articulation_features": source,
+                "agg_steps": agg_steps or self.sampler.agg_steps,
+            },
+        )
+        obj.validate(f"{self.name} output")
+        self.timings = {**run.timings, "articulation": time.perf_counter() - t}
+        return obj
+
+    # --- Generator interface --------------------------------------------------------------
+
+    def generate(
+        self,
+        image: np.ndarray,
+        mask: np.ndarray | None = None,
+        hints: dict[str, Any] | None = None,
+    ) -> ArticulatedObject:
+        return self.assemble(self.run(image, mask), hints)
+
+    def generate_from_occupancy(
+        self,
+        image: np.ndarray,
+        occupancy: np.ndarray,
+        hints: dict[str, Any] | None = None,
+    ) -> ArticulatedObject:
+        """Teacher forcing: stage 2 on given part voxels (K, R, R, R) (slot 0 = base)."""
+        return self.assemble(self.run(image, None, occupancy), hints)

@@ -1,0 +1,268 @@
+"""``Stage1Generator``: the Generator interface on PAct stage 1 alone.
+
+image (+ optional part mask) -> part-aware flow (``stage1.generate_parts``) -> one
+occupancy grid per part -> marching cubes -> part meshes in the normalized frame
+([-0.5, 0.5]^3, +x front, +z up; ``scale`` None). Slot 0 is the base, the other used slots
+are movable parts. Until stage 2's articulation head exists, joints come from a simple
+box rule (``estimate_joint``):
+
+- thin in x (a front panel: x extent <= ``THIN`` x the smaller of y, z) -> door,
+  revolute, opening outward (+x) by up to 90 degrees:
+  taller than wide -> vertical hinge (axis z) on the panel's front edge at the side
+  nearest the base's side wall; wider than tall -> bottom hinge (axis y) on its front
+  bottom edge (oven, dishwasher);
+- thin in z and sitting on top of the base -> lid, revolute about y on its back top edge;
+- otherwise (a box deeper in x: drawer) -> prismatic along +x, range 0.8 x its depth.
+
+Colours: a part's vertex colour is the mean image colour under that part's mask pixels
+(mask id = slot + 1), else ``DEFAULT_COLOR``.
+
+Mask ids above the model's ``max_parts`` cannot be embedded and are treated as background.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import trimesh
+
+from generator.articulated import ArticulatedObject, Joint, Part
+
+from .checkpoint import load_checkpoint
+from .flow import SamplerConfig
+from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1
+
+log = logging.getLogger(__name__)
+
+WEIGHTS_DIR = Path(__file__).parent / "weights"
+DEFAULT_COLOR = (180, 180, 180, 255)
+THIN = 0.5  # a panel's thin extent is at most this fraction of its other two
+DOOR_RANGE = np.pi / 2
+DRAWER_TRAVEL = 0.8  # of the drawer's depth
+
+
+class Stage1Error(RuntimeError):
+    """The stage-1 weights are missing or unreadable."""
+
+
+# --- geometry ---------------------------------------------------------------------------
+
+
+def occupancy_mesh(grid: np.ndarray, smooth_iterations: int = 5) -> trimesh.Trimesh | None:
+    """(R, R, R) bool grid ([x, y, z], voxel centres at -0.5 + (i + 0.5) / R) -> a closed
+    surface in the normalized frame, Taubin-smoothed a little; None for an empty grid."""
+    from skimage.measure import marching_cubes
+
+    if not grid.any():
+        return None
+    R = grid.shape[0]
+    padded = np.pad(grid.astype(np.float32), 1)  # closes surfaces at the grid border
+    verts, faces, _, _ = marching_cubes(padded, level=0.5)
+    verts = -0.5 + (verts - 0.5) / R  # padded index -> normalized coordinate
+    mesh = trimesh.Trimesh(verts, faces, process=True)
+    if smooth_iterations:
+        trimesh.smoothing.filter_taubin(mesh, iterations=smooth_iterations)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
+def estimate_joint(part: np.ndarray, base: np.ndarray) -> tuple[str, Joint]:
+    """(semantic, joint) of a part from its box (2, 3) and the base's box (2, 3), both
+    in the normalized frame; see the module docstring for the rule."""
+    lo, hi = part
+    ext = hi - lo
+    centre = (lo + hi) / 2
+    if ext[0] <= THIN * min(ext[1], ext[2]):  # front panel: door
+        if ext[2] >= ext[1]:  # tall: vertical hinge at the side nearest a base side wall
+            left = abs(lo[1] - base[0, 1]) <= abs(base[1, 1] - hi[1])
+            y = lo[1] if left else hi[1]
+            # the panel extends from the hinge towards +y (left hinge) or -y: choose the
+            # axis sign that swings it outward (+x) for positive angles
+            axis = (0.0, 0.0, -1.0) if left else (0.0, 0.0, 1.0)
+            joint = Joint("revolute", (hi[0], y, centre[2]), axis, 0.0, DOOR_RANGE)
+        else:  # wide: bottom hinge, drops forward
+            joint = Joint("revolute", (hi[0], centre[1], lo[2]), (0.0, 1.0, 0.0), 0.0, DOOR_RANGE)
+        return "door", joint
+    if ext[2] <= THIN * min(ext[0], ext[1]) and lo[2] >= base[1, 2] - 0.5 * ext[2] - 0.05:
+        # lid on top: hinge on the back top edge, lifts up
+        joint = Joint("revolute", (lo[0], centre[1], hi[2]), (0.0, -1.0, 0.0), 0.0, DOOR_RANGE)
+        return "lid", joint
+    travel = max(DRAWER_TRAVEL * float(ext[0]), 1e-3)
+    return "drawer", Joint("prismatic", centre, (1.0, 0.0, 0.0), 0.0, travel)
+
+
+def _part_color(image: np.ndarray, mask: np.ndarray | None, mask_id: int) -> tuple[int, ...]:
+    if mask is None:
+        return DEFAULT_COLOR
+    sel = mask == mask_id
+    if not sel.any():
+        return DEFAULT_COLOR
+    rgb = image[sel].reshape(-1, 3).mean(axis=0)
+    return (*(int(round(c)) for c in rgb), 255)
+
+
+def _square(image: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Pad a non-square image (edge colour) and its mask (background) to a square."""
+    H, W = image.shape[:2]
+    if H == W:
+        return image, mask
+    S = max(H, W)
+    top, left = (S - H) // 2, (S - W) // 2
+    pad = ((top, S - H - top), (left, S - W - left))
+    image = np.pad(image, (*pad, (0, 0)), mode="edge")
+    if mask is not None:
+        mask = np.pad(mask, pad)
+    return image, mask
+
+
+# --- the generator ----------------------------------------------------------------------
+
+
+class Stage1Generator:
+    """PAct stage 1 as a Generator (generator/interface.py); see the module docstring."""
+
+    name = "pact-stage1"
+
+    def __init__(
+        self,
+        models: dict[str, torch.nn.Module],
+        cfg: Stage1Config,
+        latent_stats: LatentStats | None = None,
+        *,
+        sampler: SamplerConfig | None = None,
+        seed: int = 0,
+        version: str = "stage1",
+        device: torch.device | str = "cpu",
+    ) -> None:
+        self.models = {k: m.to(device).eval() for k, m in models.items()}
+        self.cfg = cfg
+        self.latent_stats = latent_stats
+        self.sampler = sampler or cfg.sampler
+        self.seed = seed
+        self.version = version
+        self.device = torch.device(device)
+        self.timings: dict[str, float] = {}
+
+    @classmethod
+    def load(cls, folder: str | Path, **kwargs: Any) -> Stage1Generator:
+        """Weights from ``folder/ss_vae`` (VAE checkpoint) and ``folder/stage1``."""
+        folder = Path(folder)
+        if not (folder / "ss_vae").is_dir() or not (folder / "stage1").is_dir():
+            raise Stage1Error(
+                f"{folder}: expected ss_vae/ and stage1/ checkpoint folders; train them with "
+                "`pact train-gen --stage 1` and export with generator.pact.train.export_weights"
+            )
+        device = kwargs.get("device", "cpu")
+        models, cfg, stats = load_stage1(folder / "stage1", device)
+        models["vae"] = load_checkpoint(folder / "ss_vae", device).eval()
+        digest = hashlib.sha256((folder / "stage1" / "model.safetensors").read_bytes())
+        kwargs.setdefault("version", f"stage1-{folder.name}-{digest.hexdigest()[:10]}")
+        return cls(models, cfg, stats, **kwargs)
+
+    @classmethod
+    def default(cls, **kwargs: Any) -> Stage1Generator:
+        """The shipped small model, ``generator/pact/weights/small``."""
+        return cls.load(WEIGHTS_DIR / "small", **kwargs)
+
+    # --- stage 1 proper -----------------------------------------------------------------
+
+    def inputs(
+        self, image: np.ndarray, mask: np.ndarray | None
+    ) -> tuple[torch.Tensor, torch.Tensor | None, np.ndarray, np.ndarray | None]:
+        """uint8 (H, W, 3) image and (H, W) mask -> model inputs (1, 3, S, S) in [0, 1]
+        and (1, S, S) ids (or None), plus the squared uint8 image and mask."""
+        image = np.asarray(image)[..., :3]
+        if mask is not None:
+            mask = np.asarray(mask).astype(np.int64)
+            mask = np.where(mask > self.cfg.flow.max_parts, 0, mask)
+        image, mask = _square(image, mask)
+        S = self.cfg.image_encoder.image_size
+        img = torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1)[None].float() / 255
+        if img.shape[-1] != S:
+            img = F.interpolate(img, size=(S, S), mode="bilinear", antialias=True).clamp(0, 1)
+        m = None
+        if mask is not None:
+            m = torch.from_numpy(np.ascontiguousarray(mask))[None, None].float()
+            m = F.interpolate(m, size=(S, S), mode="nearest")[0].long()
+        return img.to(self.device), None if m is None else m.to(self.device), image, mask
+
+    def predict_parts(
+        self, image: np.ndarray, mask: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Part occupancies (T, R, R, R) bool and used slots (T,) bool for one image."""
+        img, m, _, _ = self.inputs(image, mask)
+        gen = torch.Generator(device=self.device).manual_seed(self.seed)
+        occ, exists = generate_parts(
+            self.models, img, m, self.sampler, gen, latent_stats=self.latent_stats
+        )
+        return occ[0].cpu().numpy(), exists[0].cpu().numpy()
+
+    # --- Generator interface ------------------------------------------------------------
+
+    def generate(
+        self,
+        image: np.ndarray,
+        mask: np.ndarray | None = None,
+        hints: dict[str, Any] | None = None,
+    ) -> ArticulatedObject:
+        t0 = time.perf_counter()
+        occ, _ = self.predict_parts(image, mask)
+        t1 = time.perf_counter()
+        obj = self.assemble(occ, image, mask, hints)
+        self.timings = {"stage1": t1 - t0, "mesh": time.perf_counter() - t1}
+        return obj
+
+    def assemble(
+        self,
+        occ: np.ndarray,
+        image: np.ndarray,
+        mask: np.ndarray | None = None,
+        hints: dict[str, Any] | None = None,
+    ) -> ArticulatedObject:
+        """Part occupancies (T, R, R, R) -> a valid ArticulatedObject (meshes, colours,
+        box-rule joints); ``image``/``mask`` only give the colours."""
+        hints = hints or {}
+        _, _, sq_image, sq_mask = self.inputs(image, mask)
+        meshes: dict[int, trimesh.Trimesh] = {}
+        for k in range(len(occ)):
+            mesh = occupancy_mesh(occ[k])
+            if mesh is not None and len(mesh.faces):
+                color = _part_color(sq_image, sq_mask, k + 1)
+                mesh.visual.vertex_colors = np.tile(color, (len(mesh.vertices), 1))
+                meshes[k] = mesh
+        if 0 not in meshes:  # no base predicted: the union of everything, else a cube
+            grid = occ.any(axis=0)
+            meshes[0] = occupancy_mesh(grid) if grid.any() else trimesh.creation.box((1, 1, 1))
+            for k in list(meshes):
+                if k:
+                    meshes.pop(k)
+            meshes[0].visual.vertex_colors = np.tile(DEFAULT_COLOR, (len(meshes[0].vertices), 1))
+        base_box = meshes[0].bounds
+        parts = [Part("base", "base", meshes[0])]
+        for k in sorted(meshes):
+            if k == 0:
+                continue
+            semantic, joint = estimate_joint(meshes[k].bounds, base_box)
+            parts.append(Part(f"{semantic}_{k}", semantic, meshes[k], joint))
+        obj = ArticulatedObject(
+            parts,
+            category=str(hints.get("category", "unknown")),
+            scale=None,
+            provenance={
+                "generator": self.name,
+                "generator_version": self.version,
+                "seed": self.seed,
+                "mask_parts": None if mask is None else int(len(np.unique(mask)) - 1),
+                "articulation": "box rule (stage1_generator.estimate_joint)",
+            },
+        )
+        obj.validate(f"{self.name} output")
+        return obj

@@ -1,0 +1,250 @@
+"""PAct stage 2: SLAT VAE, structure-conditioned flow, articulation head (tiny configs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from generator.articulated import Primitive
+from generator.pact.articulation import (
+    ArticulationHead,
+    ArticulationHeadConfig,
+    ArticulationTargets,
+    FeatureAggregator,
+    pool_parts,
+    project_origin_to_aabb,
+)
+from generator.pact.slat_data import primitive_sdf, shell_voxels, subsample_points
+from generator.pact.slat_vae import (
+    SlatVAE,
+    SlatVAEConfig,
+    SlatVAETrainConfig,
+    decode_part_mesh,
+    sparse_parts,
+    vae_loss,
+)
+from generator.pact.stage2 import (
+    Stage2SamplerConfig,
+    Stage2TrainConfig,
+    collate,
+    sample_stage2,
+    tokenize,
+    training_step,
+    untokenize,
+)
+from generator.pact.stage2_flow import Stage2FlowConfig, Stage2FlowTransformer
+
+TINY_FLOW = Stage2FlowConfig(
+    max_parts=4, latent_channels=8, patch_size=4, resolution=32, width=32, depth=2, heads=2,
+    cond_dim=16, max_tokens=128,
+)  # fmt: skip
+
+
+def _box_part(size=(0.3, 0.2, 0.25), centre=(0.0, 0.05, -0.1)):
+    """A box part: occupancy (32^3), its token voxels, their SDF sub-samples (truncated)."""
+    T = np.eye(4)
+    T[:3, 3] = centre
+    prim = Primitive("box", np.array(size), T)
+    c = -0.5 + (np.arange(32) + 0.5) / 32
+    grid = np.stack(np.meshgrid(c, c, c, indexing="ij"), -1).reshape(-1, 3)
+    occ = (primitive_sdf(prim, grid) <= 0.5 * np.sqrt(3) / 32).reshape(32, 32, 32)
+    coords = np.argwhere(shell_voxels(occ))
+    sdf = primitive_sdf(prim, subsample_points(coords).reshape(-1, 3)) * 32
+    return occ, coords, np.clip(sdf, -1, 1).reshape(len(coords), 64).astype(np.float32)
+
+
+def _tiny_tokens(seed: int = 0):
+    occ = np.zeros((4, 32, 32, 32), bool)
+    occ[0, 4:20, 4:20, 4:12] = True
+    occ[1, 20:28, 8:16, 8:16] = True
+    from generator.pact.stage2 import voxels_from_occupancy
+
+    coords, slot = voxels_from_occupancy(occ)
+    z = np.random.default_rng(seed).normal(size=(len(coords), 8)).astype(np.float32)
+    return tokenize(coords, slot, occ, TINY_FLOW, z), z
+
+
+# --------------------------------------------------------------------------- head
+
+
+def test_aggregator_matches_hand_computation():
+    # 3 steps, S = 2: steps 1 and 2 are averaged; tokens 0, 1 belong to part 0, token 2 to part 1
+    steps = [
+        torch.tensor([[[9.0, 9.0], [9.0, 9.0], [9.0, 9.0]]]),
+        torch.tensor([[[1.0, 2.0], [3.0, 0.0], [5.0, -1.0]]]),
+        torch.tensor([[[3.0, 4.0], [1.0, 2.0], [7.0, 1.0]]]),
+    ]
+    agg = FeatureAggregator(total_steps=3, last=2)
+    for i, f in enumerate(steps):
+        agg(i, 1.0 - i / 3, f)
+    assert agg.used == [1, 2]
+    H = agg.mean()  # by hand: [[2, 3], [2, 1], [6, 0]]
+    assert torch.allclose(H, torch.tensor([[[2.0, 3.0], [2.0, 1.0], [6.0, 0.0]]]))
+    pooled, present = pool_parts(
+        H, torch.tensor([[0, 0, 1]]), torch.ones(1, 3, dtype=torch.bool), max_parts=3
+    )
+    # part 0: mean [2, 2], max [2, 3]; part 1: mean = max = [6, 0]; part 2 absent
+    assert torch.allclose(pooled[0, 0], torch.tensor([2.0, 2.0, 2.0, 3.0]))
+    assert torch.allclose(pooled[0, 1], torch.tensor([6.0, 0.0, 6.0, 0.0]))
+    assert present[0].tolist() == [True, True, False]
+
+
+def test_changing_s_changes_the_steps_read():
+    torch.manual_seed(0)
+    flow = Stage2FlowTransformer(TINY_FLOW).eval()
+    toks, _ = _tiny_tokens()
+    batch = collate([toks], TINY_FLOW.max_tokens)
+    cond = torch.randn(1, 5, 16)
+    used = {}
+    for S in (1, 3, 5):
+        agg = FeatureAggregator(total_steps=5, last=S)
+        sample_stage2(flow, batch, cond, Stage2SamplerConfig(steps=5, cfg_scale=2.0), None, agg)
+        used[S] = agg.used
+    assert used == {1: [4], 3: [2, 3, 4], 5: [0, 1, 2, 3, 4]}
+    with pytest.raises(ValueError):
+        FeatureAggregator(total_steps=5, last=6)
+
+
+def test_joint_outputs_always_valid():
+    torch.manual_seed(0)
+    head = ArticulationHead(ArticulationHeadConfig(in_dim=16, hidden=32, layers=6))
+    for scale in (0.0, 1.0, 100.0):
+        out = head(torch.randn(64, 32) * scale)
+        assert torch.allclose(out.axis.norm(dim=-1), torch.ones(64), atol=1e-5)
+        assert (out.range[:, 0] < out.range[:, 1]).all()
+        assert out.type_logits.shape == (64, 3) and out.semantic_logits.shape == (64, 4)
+    assert sum(isinstance(m, torch.nn.Linear) for m in head.modules()) == 6
+
+
+def test_origin_projection_onto_aabb_surface():
+    lo, hi = np.zeros(3), np.array([1.0, 2.0, 1.0])
+    # inside, nearest face is x = 0 (distance 0.2)
+    assert np.allclose(project_origin_to_aabb([0.2, 1.0, 0.5], lo, hi), [0.0, 1.0, 0.5])
+    # inside, nearest face is y = 2 (distance 0.1)
+    assert np.allclose(project_origin_to_aabb([0.5, 1.9, 0.5], lo, hi), [0.5, 2.0, 0.5])
+    # outside: the clamped point
+    assert np.allclose(project_origin_to_aabb([2.0, 1.0, -1.0], lo, hi), [1.0, 1.0, 0.0])
+    # on the surface: unchanged
+    assert np.allclose(project_origin_to_aabb([1.0, 0.3, 0.4], lo, hi), [1.0, 0.3, 0.4])
+
+
+# --------------------------------------------------------------------------- SLAT VAE
+
+
+def test_slat_vae_shapes_and_overfit_one_part():
+    torch.manual_seed(0)
+    occ, coords, sdf = _box_part()
+    sp = sparse_parts(
+        torch.from_numpy(coords), torch.zeros(len(coords), dtype=torch.long),
+        torch.from_numpy(occ)[None],
+    )  # fmt: skip
+    assert sp.neighbours.shape == (len(coords), 27) and (sp.neighbours[:, 13] >= 0).all()
+    vae = SlatVAE(SlatVAEConfig(embed=16, hidden=96))
+    sdf_t = torch.from_numpy(sdf)
+    rgb_t = torch.full((len(coords), 3), 0.2)
+    mean, logvar = vae.encode(sdf_t, rgb_t, sp)
+    assert mean.shape == logvar.shape == (len(coords), 8)
+    s, c = vae.decode(mean, sp)
+    assert s.shape == (len(coords), 64) and c.shape == (len(coords), 3)
+    opt = torch.optim.Adam(vae.parameters(), lr=5e-3)
+    tcfg = SlatVAETrainConfig(kl_weight=1e-5)
+    for _ in range(100):
+        loss, m = vae_loss(vae(sdf_t, rgb_t, sp), sdf_t, rgb_t, tcfg)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    out = vae(sdf_t, rgb_t, sp, sample=False)
+    assert (out.sdf - sdf_t).abs().mean() < 0.05
+    mesh = decode_part_mesh(
+        coords, out.sdf.detach().numpy(), np.full((len(coords), 3), 90, np.uint8), occ
+    )
+    assert mesh is not None
+    assert np.allclose(mesh.extents, [0.3, 0.2, 0.25], atol=0.03)
+
+
+# --------------------------------------------------------------------------- flow
+
+
+def test_tokenize_roundtrip_and_bound():
+    toks, z = _tiny_tokens()
+    assert len(toks.slot) <= TINY_FLOW.max_parts * TINY_FLOW.grid**3
+    assert np.allclose(untokenize(toks.x, toks, 8), z)
+    assert toks.active.sum() == len(z)
+
+
+def test_part_embedding_added_to_every_token_of_its_part():
+    torch.manual_seed(0)
+    flow = Stage2FlowTransformer(TINY_FLOW).eval()
+    _randomize(flow)
+    toks, _ = _tiny_tokens()
+    batch = collate([toks], TINY_FLOW.max_tokens)
+    moved = batch._replace(slot=torch.where(batch.slot == 1, 3, batch.slot))
+    diff = flow.embed_tokens(moved) - flow.embed_tokens(batch)  # (1, L, D)
+    expect = (flow.part_embed[3] - flow.part_embed[1]).detach()
+    is1 = batch.slot[0] == 1
+    assert torch.allclose(diff[0, is1], expect.expand(int(is1.sum()), -1), atol=1e-6)
+    assert torch.allclose(diff[0, ~is1], torch.zeros(1), atol=1e-6)
+    cond, t = torch.randn(1, 5, 16), torch.tensor([0.5])
+    with torch.no_grad():
+        assert not torch.allclose(flow(moved, t, cond).velocity, flow(batch, t, cond).velocity)
+        flow.part_embed[3] = flow.part_embed[1]  # same embedding row: same output
+        assert torch.allclose(flow(moved, t, cond).velocity, flow(batch, t, cond).velocity)
+
+
+def _randomize(flow: Stage2FlowTransformer) -> None:
+    with torch.no_grad():  # adaLN-Zero and zero out_proj would make every output 0
+        for p in flow.parameters():
+            p.add_(torch.randn_like(p) * 0.05)
+
+
+def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
+    torch.manual_seed(0)
+    flow = Stage2FlowTransformer(TINY_FLOW).eval()
+    _randomize(flow)
+    toks, _ = _tiny_tokens()
+    batch = collate([toks], TINY_FLOW.max_tokens)
+    cond = torch.randn(1, 5, 16)
+    sampler = Stage2SamplerConfig(steps=4, cfg_scale=1.0)
+    x = sample_stage2(flow, batch, cond, sampler, torch.Generator().manual_seed(3))
+    # reference: plain conditional Euler from the same noise
+    m = batch.active.repeat_interleave(8, -1).float()
+    ref = torch.randn(batch.x.shape, generator=torch.Generator().manual_seed(3)) * m
+    ts = torch.linspace(1.0, 0.0, 5, dtype=torch.float64)
+    with torch.no_grad():
+        for i in range(4):
+            v = flow(batch.with_x(ref), torch.full((1,), float(ts[i])), cond).velocity
+            ref = (ref + float(ts[i + 1] - ts[i]) * v) * m
+    assert torch.allclose(x, ref, atol=1e-5)
+    again = sample_stage2(flow, batch, cond, sampler, torch.Generator().manual_seed(3))
+    other = sample_stage2(flow, batch, cond, sampler, torch.Generator().manual_seed(4))
+    assert torch.equal(x, again) and not torch.allclose(x, other)
+    guided = sample_stage2(flow, batch, cond, Stage2SamplerConfig(steps=4, cfg_scale=3.0),
+                           torch.Generator().manual_seed(3))  # fmt: skip
+    assert not torch.allclose(x, guided)
+
+
+def test_training_step_joint_loss_backpropagates():
+    torch.manual_seed(0)
+    from generator.pact.image_encoder import ImageEncoder, ViTConfig
+
+    models = {
+        "image_encoder": ImageEncoder(
+            ViTConfig(image_size=32, patch_size=16, width=16, depth=1, heads=2)
+        ),
+        "flow": Stage2FlowTransformer(TINY_FLOW),
+        "head": ArticulationHead(ArticulationHeadConfig(in_dim=32, hidden=32)),
+    }
+    toks, _ = _tiny_tokens()
+    batch = collate([toks, _tiny_tokens(1)[0]], TINY_FLOW.max_tokens)
+    K = TINY_FLOW.max_parts
+    tgt = ArticulationTargets(
+        torch.tensor([[0, 2, 0, 0], [0, 3, 0, 0]]), torch.tensor([[0, 1, 0, 0], [0, 2, 0, 0]]),
+        torch.zeros(2, K, 3), torch.tensor([1.0, 0, 0]).expand(2, K, 3), torch.ones(2, K, 2),
+    )  # fmt: skip
+    loss, m = training_step(models, batch, torch.rand(2, 3, 32, 32), tgt, Stage2TrainConfig())
+    loss.backward()
+    assert np.isfinite(m["loss"]) and m["art"] > 0
+    assert models["head"].out.weight.grad.abs().sum() > 0
+    # out_proj starts at zero, so at init only L_art sends gradient into the token path
+    assert models["flow"].input_proj.weight.grad.abs().sum() > 0
