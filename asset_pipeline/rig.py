@@ -12,16 +12,40 @@ link-frame geometry = object-frame geometry - joint origin.
 
 Physics defaults (:class:`PhysicsDefaults`, overridable per build)
 -------------------------------------------------------------------
-Effective densities (kg/m^3) per ``Part.material``:
+Mass: a shell model per ``Part.material`` (:class:`MaterialModel`). Real furniture
+and appliance parts are boards, sheet-metal skins around insulation, moulded
+plastic and glass panes, not solid blocks of their material; a solid model made a
+procedural refrigerator door 47 kg (real: 8-15 kg), too heavy for any gripper
+once PhysX scales joint friction with the constraint load. With ``V`` the volume
+and ``A`` the surface area of the (watertight) part mesh, a material of density
+``rho`` and shell thickness ``t``::
 
-=========  =====  ==========================================================
-material   rho    note
-=========  =====  ==========================================================
-wood       600    solid panels (particle board / pine)
-metal      2000   hollow sheet-metal appliance shells (steel is 7800 solid)
-plastic    1000
-glass      2500
-=========  =====  ==========================================================
+    mass = rho * min(V, A * t) + rho_core * max(V - A * t, 0)
+
+A slab thinner than ``2 t`` (``A * t >= V``) is solid; a thicker or hollow-looking
+body is a skin of thickness ``t`` (the mesh surface counts both skins of a
+double-walled panel: a fridge door's outer steel and its inner liner) around a core
+of density ``rho_core`` (polyurethane foam in appliance panels, air otherwise).
+
+=========  =====  =======  ======  ================================================
+material   rho    t (mm)   core    note
+=========  =====  =======  ======  ================================================
+wood       600    19       0       particle board / pine; boards up to 38 mm solid
+metal      7800   0.8      40      steel skins 0.5-1.0 mm, PU-foam insulation
+plastic    1000   3        0       moulded ABS / PP walls
+glass      2500   3        0       a pane of up to 6 mm is solid; two 3 mm panes
+=========  =====  =======  ======  ================================================
+
+Typical masses of procedural parts (seeds 0-5, median): refrigerator door ~10 kg,
+dishwasher door ~5 kg, oven door ~7 kg, microwave door ~1 kg, cabinet door ~2 kg,
+drawers 2-6 kg; bases: refrigerator ~80 kg, oven ~37 kg, microwave ~12 kg.
+
+Inertia is consistent with that mass distribution: a solid part has the
+uniform-density inertia of its volume; a shell has the inertia of an area density
+``rho * t`` spread over its surface (exact per-triangle second moments) plus the
+uniform inertia of its core, combined about the common centre of mass. Both are
+real mass distributions, so the tensor is positive definite and satisfies the
+triangle inequality up to round-off (:func:`sanitize_inertia` guards it).
 
 Joint defaults (SI: N s/m and N for prismatic, N m s/rad and N m for revolute):
 
@@ -55,7 +79,28 @@ from generator.articulated import ArticulatedObject
 
 log = logging.getLogger(__name__)
 
-DENSITIES: dict[str, float] = {"wood": 600.0, "metal": 2000.0, "plastic": 1000.0, "glass": 2500.0}
+
+@dataclass(frozen=True)
+class MaterialModel:
+    """How a material fills a part (see the module docstring).
+
+    ``density`` (kg/m^3) of the material itself; ``shell_thickness`` (m) of its skin,
+    ``None`` for solid; ``core_density`` (kg/m^3) of what fills a shell (0: air).
+    """
+
+    density: float
+    shell_thickness: float | None = None
+    core_density: float = 0.0
+
+
+MATERIALS: dict[str, MaterialModel] = {
+    "wood": MaterialModel(density=600.0, shell_thickness=0.019),
+    "metal": MaterialModel(density=7800.0, shell_thickness=0.0008, core_density=40.0),
+    "plastic": MaterialModel(density=1000.0, shell_thickness=0.003),
+    "glass": MaterialModel(density=2500.0, shell_thickness=0.003),
+}
+#: Density (kg/m^3) of each material itself (a solid part of it).
+DENSITIES: dict[str, float] = {k: m.density for k, m in MATERIALS.items()}
 
 
 @dataclass(frozen=True)
@@ -70,19 +115,25 @@ class JointPhysics:
 
 @dataclass(frozen=True)
 class PhysicsDefaults:
-    """Densities and joint physics used when building an asset (see the module docstring)."""
+    """Materials and joint physics used when building an asset (see the module docstring)."""
 
-    densities: Mapping[str, float] = field(default_factory=lambda: dict(DENSITIES))
-    default_density: float = 600.0
+    materials: Mapping[str, MaterialModel] = field(default_factory=lambda: dict(MATERIALS))
+    default_material: str = "wood"
     prismatic: JointPhysics = JointPhysics(damping=2.0, friction=0.1, effort=100.0, velocity=1.0)
     revolute: JointPhysics = JointPhysics(damping=0.5, friction=0.02, effort=100.0, velocity=2.0)
     #: Lower bound on a link's mass (kg); lighter links are scaled up (inertia too).
     min_mass: float = 0.05
 
+    def material(self, material: str) -> MaterialModel:
+        """The :class:`MaterialModel` of ``material`` (the default material's if unknown)."""
+        if material not in self.materials:
+            log.warning("unknown material %r; using %r", material, self.default_material)
+            return self.materials[self.default_material]
+        return self.materials[material]
+
     def density(self, material: str) -> float:
-        if material not in self.densities:
-            log.warning("unknown material %r; using density %g", material, self.default_density)
-        return float(self.densities.get(material, self.default_density))
+        """Density (kg/m^3) of ``material`` itself."""
+        return float(self.material(material).density)
 
     def joint(self, joint_type: str) -> JointPhysics:
         if joint_type == "prismatic":
@@ -139,27 +190,84 @@ def _solid(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh
 
 
-def mass_properties(mesh: trimesh.Trimesh, density: float, min_mass: float = 0.0) -> MassProperties:
-    """Mass properties of a closed ``mesh`` (metres) of uniform ``density`` (kg/m^3).
+def surface_second_moments(mesh: trimesh.Trimesh) -> tuple[float, np.ndarray, np.ndarray]:
+    """Area (m^2), area centroid (3,) and inertia (3, 3) about it of ``mesh``'s surface
+    at unit area density (kg/m^2 = 1).
 
-    Overlapping closed bodies are unioned first (manifold3d) so overlaps count once.
-    The COM is in the mesh's frame; the inertia is about the COM and sanitized by
-    :func:`sanitize_inertia`. A mesh lighter than ``min_mass`` is scaled up to it.
+    Exact per triangle: the second moment of a triangle with vertices ``v_i`` and area
+    ``a`` is ``a / 12 * (sum v_i v_i^T + s s^T)`` with ``s = sum v_i``.
     """
+    tri = np.asarray(mesh.triangles, dtype=float)  # (F, 3, 3)
+    area = np.asarray(mesh.area_faces, dtype=float)
+    total = float(area.sum())
+    if not total > 0:
+        return 0.0, np.zeros(3), np.zeros((3, 3))
+    centroid = (area[:, None] * tri.mean(axis=1)).sum(axis=0) / total
+    t = tri - centroid  # about the centroid: better conditioned
+    s = t.sum(axis=1)
+    second = np.einsum("f,fvi,fvj->ij", area, t, t) + np.einsum("f,fi,fj->ij", area, s, s)
+    second /= 12.0
+    inertia = np.trace(second) * np.eye(3) - second
+    return total, centroid, inertia
+
+
+def _combine(parts: list[tuple[float, np.ndarray, np.ndarray]]) -> MassProperties:
+    """Mass properties of bodies given as (mass, com, inertia about their com)."""
+    parts = [p for p in parts if p[0] > 0]
+    mass = float(sum(m for m, _, _ in parts))
+    com = sum(m * c for m, c, _ in parts) / mass
+    inertia = np.zeros((3, 3))
+    for m, c, inertia_c in parts:
+        d = c - com
+        inertia = inertia + inertia_c + m * (float(d @ d) * np.eye(3) - np.outer(d, d))
+    return MassProperties(mass=mass, com=np.asarray(com, dtype=float), inertia=inertia)
+
+
+def mass_properties(
+    mesh: trimesh.Trimesh, material: MaterialModel | float, min_mass: float = 0.0
+) -> MassProperties:
+    """Mass properties of a closed ``mesh`` (metres) made of ``material``.
+
+    ``material``: a :class:`MaterialModel` (shell model, see the module docstring) or a
+    plain density (kg/m^3) for a solid of uniform density. Overlapping closed bodies
+    are unioned first (manifold3d) so overlaps count once. The COM is in the mesh's
+    frame; the inertia is about the COM and sanitized by :func:`sanitize_inertia`. A
+    mesh lighter than ``min_mass`` is scaled up to it.
+    """
+    if not isinstance(material, MaterialModel):
+        material = MaterialModel(density=float(material))
     solid = _solid(mesh)
     volume = float(solid.volume)
     if not volume > 0:
         log.warning("mesh volume %.3g is not positive; using its convex hull", volume)
         solid = solid.convex_hull
         volume = float(solid.volume)
-    mass = volume * density
-    com = np.asarray(solid.center_mass, dtype=float)
+    rho, t = material.density, material.shell_thickness
     # trimesh: moment_inertia is about the centre of mass for density 1
-    inertia = np.asarray(solid.moment_inertia, dtype=float) * density
-    if mass < min_mass:
-        inertia = inertia * (min_mass / max(mass, 1e-12))
-        mass = min_mass
-    return MassProperties(mass=mass, com=com, inertia=sanitize_inertia(inertia))
+    vol_com = np.asarray(solid.center_mass, dtype=float)
+    vol_inertia = np.asarray(solid.moment_inertia, dtype=float)
+    area = float(solid.area)
+    if t is None or area * t >= volume:  # solid: a board, a pane, a moulded block
+        mp = MassProperties(mass=volume * rho, com=vol_com, inertia=vol_inertia * rho)
+    else:  # a skin of thickness t on the surface around a core
+        area, surf_com, surf_inertia = surface_second_moments(solid)
+        shell_density = rho * t  # kg/m^2
+        core_volume = max(volume - area * t, 0.0)
+        mp = _combine(
+            [
+                (area * shell_density, surf_com, surf_inertia * shell_density),
+                (
+                    core_volume * material.core_density,
+                    vol_com,
+                    vol_inertia * (core_volume / volume) * material.core_density,
+                ),
+            ]
+        )
+    if mp.mass < min_mass:
+        mp.inertia = mp.inertia * (min_mass / max(mp.mass, 1e-12))
+        mp.mass = min_mass
+    mp.inertia = sanitize_inertia(mp.inertia)
+    return mp
 
 
 def mean_rgba(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -240,7 +348,7 @@ def build_rig(
     order = [obj.base] + [p for p in obj.parts if not p.is_base]
     for p in order:
         origin = link_origin(obj, p.name)
-        mp = mass_properties(p.mesh, physics.density(p.material), physics.min_mass)
+        mp = mass_properties(p.mesh, physics.material(p.material), physics.min_mass)
         mp.com = mp.com - origin
         links.append(
             RigLink(

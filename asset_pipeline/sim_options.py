@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -98,6 +99,23 @@ def urdf_joint_friction(urdf: str | Path) -> dict[str, float]:
     return out
 
 
+def match_joint_name(loaded: str, urdf_names: Iterable[str]) -> str | None:
+    """The URDF joint name a loaded joint was built from, or None.
+
+    Plain SAPIEN keeps URDF names (``joint_door_0``); ManiSkill prefixes them with
+    the sub-scene and articulation (``scene-0-object-0_joint_door_0``). A name
+    matches when it is the loaded name or its suffix after an underscore; of
+    several matches the longest wins (``joint_door_10`` is not ``joint_door_0``).
+    """
+    best: str | None = None
+    for name in urdf_names:
+        if (loaded == name or loaded.endswith("_" + name)) and (
+            best is None or len(name) > len(best)
+        ):
+            best = name
+    return best
+
+
 def apply_sim_options(
     articulation: sapien.physx.PhysxArticulation,
     options: SimOptions = DEFAULT_SIM_OPTIONS,
@@ -115,6 +133,8 @@ def apply_sim_options(
     ``urdf``: the asset's URDF; its joint friction is applied. SAPIEN 3.0.3's
     ``ArticulationBuilder`` drops the ``friction`` it parses (every joint gets
     PhysX's default 0.05, measured), so pass the URDF wherever friction matters.
+    Joints are matched by name suffix (:func:`match_joint_name`), so this works for
+    SAPIEN's own names and for ManiSkill's prefixed ones alike.
     """
     material = make_material(options)
     for link in articulation.links:
@@ -131,7 +151,8 @@ def apply_sim_options(
     if urdf is not None:
         friction = urdf_joint_friction(urdf)
         for joint in articulation.get_active_joints():
-            if joint.name in friction:
-                joint.set_friction(friction[joint.name])
+            urdf_name = match_joint_name(joint.name, friction)
+            if urdf_name is not None:
+                joint.set_friction(friction[urdf_name])
     articulation.set_solver_position_iterations(options.solver_position_iterations)
     articulation.set_solver_velocity_iterations(options.solver_velocity_iterations)

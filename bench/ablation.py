@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
 import time
 from pathlib import Path
 
@@ -64,7 +65,13 @@ def main() -> None:
     ap.add_argument("--split-dir", type=Path, default=Path("runs/test_split"))
     ap.add_argument("--limit", type=int, default=0, help="only the first N objects")
     ap.add_argument("--no-mask", action="store_true")
+    ap.add_argument(
+        "--threads", type=int, default=1, help="torch threads (1 is fastest on 2 busy cores)"
+    )
     args = ap.parse_args()
+    import torch
+
+    torch.set_num_threads(args.threads)
 
     from generator.pact.generate import PActGenerator
 
@@ -77,6 +84,8 @@ def main() -> None:
     if args.voxels == "stage1" and gen.stage1_head is not None:
         variants.append(("stage1-S=20", 20, "stage1"))
     dirs = {name: args.split_dir / f"pred-pact-{args.voxels}-{name}" for name, _, _ in variants}
+    for d in dirs.values():  # no stale predictions from an earlier run in the means
+        shutil.rmtree(d, ignore_errors=True)
     seconds, failed = [], {}
     for oid in ids:
         img = np.asarray(Image.open(args.split_dir / "images" / f"{oid}.png").convert("RGB"))

@@ -15,7 +15,9 @@ meshes voxelized in the normalized frame exactly as the training set does
   ``part_iou_penalized`` the same with every unmatched part (either side) scoring 0,
   ``object_iou`` IoU of the union of all parts, ``part_count_acc`` share of objects with
   the GT number of parts, RS-dgIoU / AS-dgIoU / RS-dCD (``generator.metrics``), and
-  ``seconds`` per object (stage 1: sampling only, 2 threads; retrieval: all).
+  ``seconds`` per object (retrieval), ``seconds_batched`` (stage 1: sampling time of a
+  batch of ``--batch`` objects / batch size, 2 threads), and
+  ``stage1_seconds_per_object_batch1``: sampling one object alone.
 """
 
 from __future__ import annotations
@@ -86,6 +88,8 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=None)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--no-retrieval", action="store_true")
+    ap.add_argument("--batch", type=int, default=14, help="objects sampled together")
+    ap.add_argument("--latency-objects", type=int, default=2, help="timed alone (batch 1)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
     torch.set_num_threads(args.threads)
@@ -106,54 +110,59 @@ def main() -> None:
     vae_inter = vae_union = 0
     vae_parts = []
     vae = gen.models["vae"]
+    gts, gt_grids, images, masks, hints = [], [], [], [], []
     for oid in ids:
         gt = load_bundle(split / "gt" / oid)
-        gt_grids = part_grids(gt)  # (G, R, R, R)
-        image = np.asarray(Image.open(split / "images" / f"{oid}.png").convert("RGB"))
-        mask = np.asarray(Image.open(split / "images" / f"{oid}.mask.png"))
-        hints = json.loads((split / "images" / f"{oid}.json").read_text())
-
+        gts.append(gt)
+        gt_grids.append(part_grids(gt))  # (G, R, R, R)
+        images.append(np.asarray(Image.open(split / "images" / f"{oid}.png").convert("RGB")))
+        masks.append(np.asarray(Image.open(split / "images" / f"{oid}.mask.png")))
+        hints.append(json.loads((split / "images" / f"{oid}.json").read_text()))
         with torch.no_grad():  # VAE reconstruction of the GT parts
-            occ = torch.from_numpy(gt_grids)[:, None].float()
+            occ = torch.from_numpy(gt_grids[-1])[:, None].float()
             rec = (vae.decode(vae.encode(occ)[1]) > 0)[:, 0].numpy()
-        vae_inter += int((rec & gt_grids).sum())
-        vae_union += int((rec | gt_grids).sum())
-        vae_parts += [voxel_iou(a, b) for a, b in zip(rec, gt_grids, strict=True)]
+        vae_inter += int((rec & gt_grids[-1]).sum())
+        vae_union += int((rec | gt_grids[-1]).sum())
+        vae_parts += [voxel_iou(a, b) for a, b in zip(rec, gt_grids[-1], strict=True)]
 
-        for name, m in (("stage1_mask", mask), ("stage1_nomask", None)):
+    # latency of one object (batch 1), then the whole split in batches
+    latency = []
+    for i in range(min(args.latency_objects, len(ids))):
+        t0 = time.perf_counter()
+        gen.predict_parts(images[i], masks[i])
+        latency.append(time.perf_counter() - t0)
+    for name, use_mask in (("stage1_mask", True), ("stage1_nomask", False)):
+        for b0 in range(0, len(ids), args.batch):
+            sl = slice(b0, b0 + args.batch)
             t0 = time.perf_counter()
-            occ_pred, _ = gen.predict_parts(image, m)
-            seconds = time.perf_counter() - t0
-            used = occ_pred.reshape(len(occ_pred), -1).any(1)
-            pred = occ_pred[used]
-            row = part_scores(pred, gt_grids) | {
-                "seconds": seconds,
-                "part_count_acc": float(len(pred) == len(gt_grids)),
-            }
-            obj = gen.assemble(occ_pred, image, m, hints)
-            metrics = evaluate_pair(obj, gt)
-            row |= {k: metrics[k] for k in ("RS-dgIoU", "AS-dgIoU", "RS-dCD")}
-            methods[name].append(row)
-        if retrieval is not None:
+            occ_b, _ = gen.predict_parts_batch(images[sl], masks[sl] if use_mask else None)
+            per_object = (time.perf_counter() - t0) / len(occ_b)
+            for k, occ_pred in enumerate(occ_b):
+                i = b0 + k
+                used = occ_pred.reshape(len(occ_pred), -1).any(1)
+                pred = occ_pred[used]
+                obj = gen.assemble(occ_pred, images[i], masks[i] if use_mask else None, hints[i])
+                metrics = evaluate_pair(obj, gts[i])
+                row = part_scores(pred, gt_grids[i]) | {
+                    "seconds_batched": per_object,
+                    "part_count_acc": float(len(pred) == len(gt_grids[i])),
+                }
+                row |= {k: metrics[k] for k in ("RS-dgIoU", "AS-dgIoU", "RS-dCD")}
+                methods[name].append(row)
+            print(f"{name}: {min(b0 + args.batch, len(ids))}/{len(ids)}", file=sys.stderr)
+    if retrieval is not None:
+        for i in range(len(ids)):
             t0 = time.perf_counter()
-            obj = retrieval.generate(image, mask, hints)
+            obj = retrieval.generate(images[i], masks[i], hints[i])
             seconds = time.perf_counter() - t0
             pred = part_grids(obj)
-            metrics = evaluate_pair(obj, gt)
-            row = part_scores(pred, gt_grids) | {
+            metrics = evaluate_pair(obj, gts[i])
+            row = part_scores(pred, gt_grids[i]) | {
                 "seconds": seconds,
-                "part_count_acc": float(len(pred) == len(gt_grids)),
+                "part_count_acc": float(len(pred) == len(gt_grids[i])),
             }
             row |= {k: metrics[k] for k in ("RS-dgIoU", "AS-dgIoU", "RS-dCD")}
             methods["retrieval"].append(row)
-        print(
-            f"{oid}: "
-            + ", ".join(
-                f"{k} iou {v[-1]['part_iou']:.3f} dg {v[-1]['RS-dgIoU']:.3f}"
-                for k, v in methods.items()
-            ),
-            file=sys.stderr,
-        )
 
     out = {
         "split": str(split),
@@ -163,6 +172,7 @@ def main() -> None:
         "threads": args.threads,
         "sampler": {"steps": gen.sampler.steps, "cfg_scale": gen.sampler.cfg_scale},
         "vae": {"iou": vae_inter / max(1, vae_union), "part_iou": float(np.mean(vae_parts))},
+        "stage1_seconds_per_object_batch1": float(np.mean(latency)) if latency else None,
         **{k: _mean(v) for k, v in methods.items()},
     }
     print(json.dumps(out, indent=2))

@@ -29,7 +29,6 @@ from asset_pipeline.sim_options import (
     SimOptions,
     apply_sim_options,
     configure_urdf_loader,
-    urdf_joint_friction,
 )
 from sim_envs.catalog import AssetRecord
 
@@ -68,17 +67,10 @@ def load_asset(
         builder.set_scene_idxs(scene_idxs)
     builder.initial_pose = initial_pose or sapien.Pose()
     art = builder.build(name=name or record.id)
-    friction = urdf_joint_friction(record.urdf)
     for obj in art._objs:
-        apply_sim_options(obj, options)
-        # the URDF's joint friction: SAPIEN's builder drops it (PhysX's default 0.05
-        # otherwise); ManiSkill prefixes joint names with the scene and articulation
-        for joint in obj.get_active_joints():
-            urdf_name = next(
-                (n for n in friction if joint.name == n or joint.name.endswith("_" + n)), None
-            )
-            if urdf_name is not None:
-                joint.set_friction(friction[urdf_name])
+        # materials, groups, solver iterations and the URDF's joint friction (SAPIEN's
+        # builder drops it); joints match by name suffix despite ManiSkill's prefixes
+        apply_sim_options(obj, options, urdf=record.urdf)
     return art
 
 

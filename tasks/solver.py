@@ -7,18 +7,24 @@ opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.plac
 1. pre-grasp: the gripper 10 cm in front of the handle, pointing into the face that
    carries it (its outward normal comes from the joint: the direction the handle
    moves as the part opens, so a lid is approached from above), fingers closing
-   across a bar or knob; a recess (a pocket) is entered with closed fingertips, their
-   slim side across the pocket, after lining up 2 cm in front of it;
-2. approach the handle, 3. close the fingers (in a recess: lean on a side wall);
+   across a bar or knob; a recessed pull (a pocket bridged by a flush grip bar, see
+   ``generator.procedural.blocks``) is entered with the fingers opened just wider than
+   the bridge, lined up 2 cm in front of it, the fingertips on either side of the
+   bridge; a part without a modelled handle (kind ``none``) is entered with closed
+   fingertips;
+2. approach the handle, 3. close the fingers (pinching the bar, knob or bridge;
+   without a handle: lean on the surface toward the free edge);
 4. pull: every step the goal is the grasp pose carried by the part's link moved a
    little further along its joint (a translation for drawers, a rotation about the
    hinge for doors, the tcp turning with the door), computed from the link's
    *current* pose, so the command is a velocity along the joint's own path that
-   tolerates lag and slip;
+   tolerates lag and slip; when the controller's IK finds no solution for the
+   turning hand (the tcp freezes), only the position follows the path;
 4b. when the pull stalls short of the goal: a bottom-hinged door whose weight now
    opens it is let go to fall to its stop; another door at least ``push_min_angle``
    ajar is pushed from inside (the closed fingers go round its free edge and press
-   on its inner face along the hinge circle);
+   on its inner face along the hinge circle; if going round the edge knocks the
+   part back by ``push_max_loss``, the push is abandoned);
 5. hold still until the success flag holds (the part must be nearly still).
 
 ``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
@@ -60,13 +66,17 @@ class SolverConfig:
     stall_steps: int = 10
     max_steps: int = 300
     hold_steps: int = 15
-    recess_depth: float = 0.008  # how far past a recessed handle's point the closed fingers go
+    recess_depth: float = -0.0045  # tcp past a recessed pull's point (the bridge's middle):
+    # 4.5 mm short of it, so the 18.5 mm fingertips clear the bottom of a 10 mm pocket
+    recess_open: float = -0.08  # gripper action: fingers 13 mm from the centre (bridge 12 mm)
+    none_depth: float = 0.008  # how far past an unmodelled handle point the closed fingers go
     recess_press: float = 0.04  # m the pulling goal is set into the pocket's side wall
     release_fraction: float = 0.08  # a bottom-hinged door this far open falls open if let go
     release_steps: int = 60
     push_min_angle: float = 0.25  # rad a door must be ajar before it can be pushed open
     push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
+    push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
     trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
 
 
@@ -123,6 +133,10 @@ def joint_motion(joint_type: str, axis: np.ndarray, pivot: np.ndarray, dq: float
         M[:3, :3] = R
         M[:3, 3] = pivot - R @ pivot
     return M
+
+
+class _PushAborted(Exception):
+    """The push approach knocked the part shut."""
 
 
 class ScriptedSolver:
@@ -186,6 +200,15 @@ class ScriptedSolver:
         """Smallest distance (rad) of an arm joint to its limit."""
         return float(self._arm_limit_margins().min())
 
+    @staticmethod
+    def _frozen(before: np.ndarray, after: np.ndarray) -> bool:
+        """The tcp did not move between two steps (< 0.2 mm, < 2 mrad): IK failed."""
+        dp = float(np.linalg.norm(after[:3, 3] - before[:3, 3]))
+        dr = float(
+            np.linalg.norm(Rotation.from_matrix(after[:3, :3] @ before[:3, :3].T).as_rotvec())
+        )
+        return dp < 2e-4 and dr < 2e-3
+
     def _carried(self, point_link: np.ndarray) -> np.ndarray:
         """World position of a point fixed in the target link's frame."""
         L = self._link()
@@ -227,14 +250,33 @@ class ScriptedSolver:
         for _ in range(15):
             do(self._action(pose(out, Rp), GRIPPER_CLOSED))
         depth = self._inner_face_depth(normal_l) + cfg.push_clearance
-        for name, rad, dep in (
-            ("push:edge", edge, -0.1),
-            ("push:behind", edge, depth),
-            ("push:slide", PUSH_RADIUS, depth),
-        ):
-            self._phase = name
-            pt = push_point_link(part, rad, dep)
-            self._go(lambda pt=pt: pose(self._carried(pt), Rp), GRIPPER_CLOSED, do, budget=25)
+        start = frac()
+
+        def guarded(action: np.ndarray) -> None:
+            do(action)
+            if frac() < start - cfg.push_max_loss:
+                raise _PushAborted
+
+        try:
+            for name, rad, dep in (
+                ("push:edge", edge, -0.1),
+                ("push:behind", edge, depth),
+                ("push:slide", PUSH_RADIUS, depth),
+            ):
+                self._phase = name
+                pt = push_point_link(part, rad, dep)
+                self._go(
+                    lambda pt=pt: pose(self._carried(pt), Rp), GRIPPER_CLOSED, guarded, budget=25
+                )
+        except _PushAborted:
+            # going round the free edge swept the part shut: back off, keep what is left
+            log.debug("push approach closed the part (%.3f -> %.3f); aborting", start, frac())
+            self._phase = "push:abort"
+            away = self._tcp()
+            away[:3, 3] -= away[:3, 2] * 0.08
+            for _ in range(10):
+                do(self._action(away, GRIPPER_CLOSED))
+            return
         self._phase = "push"
         # 3. push: the pressing point carried a little further along the hinge circle
         inner = push_point_link(part, PUSH_RADIUS, depth)
@@ -280,10 +322,13 @@ class ScriptedSolver:
         u, cfg = self.u, self.cfg
         part = u.episode_parts[0]
         closing = bool(u.closing)
-        # a recess (a pocket without an undercut) is entered with closed fingertips, the
-        # slim side (17 mm) across the pocket; they press on a side wall while pulling
-        recessed = part.handle_kind in ("recessed", "none")
-        g_reach = GRIPPER_CLOSED if recessed else GRIPPER_OPEN
+        # a recessed pull is pinched at its bridge with the fingers opened just past it;
+        # a part without a modelled handle is touched with closed fingertips (slim side,
+        # 17 mm, across), which press toward the free edge while pulling
+        bridged = part.handle_kind == "recessed"
+        bare = part.handle_kind == "none"
+        recessed = bridged or bare
+        g_reach = GRIPPER_CLOSED if bare else (cfg.recess_open if bridged else GRIPPER_OPEN)
         g_hold = GRIPPER_CLOSED
         step = 0
         info: dict[str, Any] = {}
@@ -318,14 +363,14 @@ class ScriptedSolver:
         handle_link = _np(u.handle_link_pos)[0].astype(float)
         handle_axis_link = _np(u.handle_axis_obj)[0].astype(float)
         normal_link = _np(u.handle_normal_link)[0].astype(float)
-        depth = cfg.recess_depth if recessed else cfg.grasp_depth
+        depth = cfg.recess_depth if bridged else (cfg.none_depth if bare else cfg.grasp_depth)
 
         def grasp_goal(offset: float) -> np.ndarray:
             L = self._link()
             approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
             center = L[:3, :3] @ handle_link + L[:3, 3]
             bar = L[:3, :3] @ handle_axis_link
-            if recessed:  # fingers closing along the pocket: the bar "across" it
+            if bare:  # fingers closing along the face: the "bar" across that
                 bar = np.cross(approach, bar)
             T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
@@ -345,14 +390,14 @@ class ScriptedSolver:
                     break
                 do(self._action(goal, g_reach))
                 goal = grasp_goal(offset)
-        # 3. grasp (or, in a recess, lean on the pocket's side wall)
+        # 3. grasp (without a modelled handle: lean on the face toward the free edge)
         phase = self._phase = "grasp"
         goal = grasp_goal(-depth)
         for _ in range(10):
             do(self._action(goal, g_hold))
         tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
-        if recessed:
-            # lean across the pocket (tcp x); for a door, toward its free edge
+        if bare:
+            # lean across the face (tcp x); for a door, toward its free edge
             press = np.eye(4)
             press[0, 3] = cfg.recess_press
             if part.joint_type == "revolute":
@@ -368,17 +413,31 @@ class ScriptedSolver:
         axis_obj = _np(u.joint_axis_world())[0].astype(float)
         phase = self._phase = "move"
         history: list[float] = []
+        follow_rotation = True
+        last_tcp = self._tcp()
         while step < cfg.max_steps - cfg.hold_steps:
             f = frac()
             if (f <= target) if closing else (f >= target):
                 break
             history.append(f)
+            tcp = self._tcp()
+            if follow_rotation and len(history) > 2 and self._frozen(last_tcp, tcp):
+                # the controller's IK found no solution for the turning grasp (it then
+                # holds its last target): keep the hand's orientation and only pull along
+                # the path; the grasp pivots about the pads' normal or the bar
+                follow_rotation = False
+                history = [f]
+                self._phase = "move:translate"
+                log.debug("IK stuck at fraction %.3f; translating only", f)
+            last_tcp = tcp
             if len(history) > cfg.stall_steps and abs(f - history[-cfg.stall_steps - 1]) < 0.005:
                 break  # stalled (reach or joint limit, lost grip): settle and let success decide
             L = self._link()
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)
             goal = joint_motion(part.joint_type, axis_obj, L[:3, 3], dq) @ L @ tcp_in_link
+            if not follow_rotation:
+                goal[:3, :3] = tcp[:3, :3]
             do(self._action(goal, g_hold))
         # 4b. not there yet: a door hanging from a bottom hinge, once ajar, falls open
         # under its own weight when let go; any other door or lid is pushed open from

@@ -48,7 +48,7 @@ TINY = {
     "flow_train": {"batch_size": 2, "bf16": False},
     "sampler": {"steps": 2, "cfg_scale": 2.0},
 }
-FAST = dict(warmup=1, log_every=1, eval_every=2, ckpt_every=2, val_fraction=0.3)
+FAST = dict(warmup=1, log_every=1, eval_every=4, ckpt_every=2, val_fraction=0.3)
 
 
 def write_tiny_dataset(root: Path, n: int = 6) -> Path:
@@ -194,6 +194,7 @@ def _ddp_worker(rank: int, world: int, port: int, data: str, cfg: str, out: str,
     torch.distributed.destroy_process_group()
 
 
+@pytest.mark.slow
 def test_ddp_two_gloo_ranks_stay_in_sync(tiny, trained_vae, tmp_path):
     data, cfg = tiny
     vae_dir = str(trained_vae / "vae/checkpoint/ss_vae")

@@ -11,7 +11,9 @@ from lxml import etree
 
 from asset_pipeline.rig import (
     DENSITIES,
+    MATERIALS,
     JointPhysics,
+    MaterialModel,
     PhysicsDefaults,
     build_rig,
     mass_properties,
@@ -43,7 +45,7 @@ def test_box_mass_properties_match_closed_form():
     a, b, c = 0.5, 0.3, 0.02
     box = trimesh.creation.box([a, b, c])
     box.apply_translation([1.0, 2.0, 3.0])
-    mp = mass_properties(box, density=600.0)
+    mp = mass_properties(box, 600.0)
     m = 600.0 * a * b * c
     assert mp.mass == pytest.approx(m)
     np.testing.assert_allclose(mp.com, [1.0, 2.0, 3.0], atol=1e-9)
@@ -57,12 +59,51 @@ def test_overlapping_bodies_count_once_and_min_mass():
     b.apply_translation([0.1, 0, 0])  # half overlaps a
     both = trimesh.util.concatenate([a, b])
     assert both.volume == pytest.approx(0.016)  # trimesh alone counts the overlap twice
-    mp = mass_properties(both, density=1000.0)
+    mp = mass_properties(both, 1000.0)
     assert mp.mass == pytest.approx(1000.0 * 0.3 * 0.2 * 0.2, rel=1e-6)
     np.testing.assert_allclose(mp.com, [0.05, 0, 0], atol=1e-9)
     tiny = mass_properties(trimesh.creation.box([0.01, 0.01, 0.01]), 600.0, min_mass=0.05)
     assert tiny.mass == pytest.approx(0.05)
     _check_physical(tiny.inertia)
+
+
+def _box_surface_inertia(a: float, b: float, c: float, sigma: float) -> np.ndarray:
+    """Closed-form inertia of the six faces of an a x b x c box, area density sigma."""
+    dims = np.array([a, b, c])
+    out = np.zeros(3)
+    for n in range(3):  # the two faces normal to axis n, at +-dims[n] / 2
+        u, v = [k for k in range(3) if k != n]
+        m = 2 * sigma * dims[u] * dims[v]
+        out[n] += m * (dims[u] ** 2 + dims[v] ** 2) / 12
+        out[u] += m * (dims[v] ** 2 / 12 + dims[n] ** 2 / 4)
+        out[v] += m * (dims[u] ** 2 / 12 + dims[n] ** 2 / 4)
+    return np.diag(out)
+
+
+def test_shell_model_mass_and_inertia_of_a_hollow_box():
+    a, b, c = 0.7, 1.2, 0.06  # a refrigerator door
+    box = trimesh.creation.box([a, b, c])
+    box.apply_translation([0.1, 0.2, 0.3])
+    skin = MaterialModel(density=7800.0, shell_thickness=0.001)  # no core
+    mp = mass_properties(box, skin)
+    area = 2 * (a * b + a * c + b * c)
+    assert mp.mass == pytest.approx(7800.0 * 0.001 * area)
+    np.testing.assert_allclose(mp.com, [0.1, 0.2, 0.3], atol=1e-9)
+    expected = _box_surface_inertia(a, b, c, 7.8)
+    np.testing.assert_allclose(mp.inertia, expected, rtol=1e-6, atol=1e-12)
+    _check_physical(mp.inertia)
+    # with a foam core: skin + core, still physical
+    foam = mass_properties(box, MATERIALS["metal"])
+    assert 8.0 < foam.mass < 15.0  # real refrigerator doors weigh 8-15 kg
+    _check_physical(foam.inertia)
+
+
+def test_shell_model_keeps_thin_boards_solid():
+    board = trimesh.creation.box([0.02, 0.5, 0.7])  # a 20 mm cabinet door
+    mp = mass_properties(board, MATERIALS["wood"])
+    assert mp.mass == pytest.approx(DENSITIES["wood"] * 0.02 * 0.5 * 0.7)
+    np.testing.assert_allclose(mp.inertia, mass_properties(board, 600.0).inertia)
+    assert PhysicsDefaults().material("unobtainium") == MATERIALS["wood"]
 
 
 def _object() -> ArticulatedObject:
@@ -102,7 +143,11 @@ def test_build_rig_frames_masses_and_files():
     drawer = rig.link("drawer_0")
     assert drawer.collisions == ["collision/drawer_0_0.obj", "collision/drawer_0_1.obj"]
     assert drawer.visual_glb == "visual/drawer_0.glb" and drawer.visual_obj == "visual/drawer_0.obj"
-    assert drawer.mass.mass == pytest.approx(DENSITIES["metal"] * 0.4 * 0.5 * 0.2)
+    metal = MATERIALS["metal"]  # a closed 0.4 x 0.5 x 0.2 metal box is a skin around foam
+    area, volume = 2 * (0.4 * 0.5 + 0.4 * 0.2 + 0.5 * 0.2), 0.4 * 0.5 * 0.2
+    skin = area * metal.shell_thickness
+    expected = metal.density * skin + metal.core_density * (volume - skin)
+    assert drawer.mass.mass == pytest.approx(expected)
     np.testing.assert_allclose(drawer.mass.com, [0.1 - 0.3, 0, 0], atol=1e-7)  # link frame
     np.testing.assert_allclose(rig.link("base").rgba, [1, 0, 0, 1])
     j = {x.name: x for x in rig.joints}

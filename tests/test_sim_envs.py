@@ -199,3 +199,14 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
         assert float((u.object.pose.p - p0).abs().max()) < 1e-6
     finally:
         env.close()
+
+
+def test_joint_names_match_by_suffix() -> None:
+    from asset_pipeline.sim_options import match_joint_name
+
+    names = ["joint_door_0", "joint_door_10", "joint_drawer_0"]
+    assert match_joint_name("joint_door_0", names) == "joint_door_0"  # SAPIEN keeps names
+    assert match_joint_name("scene-0-object-0_joint_door_0", names) == "joint_door_0"
+    assert match_joint_name("scene-0-object-0_joint_door_10", names) == "joint_door_10"
+    assert match_joint_name("scene-0-object-0_xjoint_door_0", names) is None
+    assert match_joint_name("joint_lid_0", names) is None

@@ -89,7 +89,7 @@ def _square_resize(image: np.ndarray, size: int) -> torch.Tensor:
         pad = np.zeros((s, s, 3), np.uint8)
         pad[(s - h) // 2 : (s - h) // 2 + h, (s - w) // 2 : (s - w) // 2 + w] = image
         image = pad
-    img = torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1)[None].float() / 255.0
+    img = torch.from_numpy(np.array(image, np.uint8)).permute(2, 0, 1)[None].float() / 255.0
     if img.shape[-1] != size:
         img = F.interpolate(img, size=(size, size), mode="bilinear", antialias=True)
     return img.clamp(0, 1)
@@ -228,7 +228,7 @@ class PActGenerator:
         if len(coords) == 0:
             return PActRun(occupancy, {}, [], torch.zeros(1, 0), torch.zeros(1, 0), feats1, timings)
         toks = tokenize(coords, slot, occupancy, self.cfg.flow)
-        batch = collate([toks], self.cfg.flow.max_tokens).to(self.device)
+        batch = collate([toks], max(len(toks.slot), self.cfg.flow.max_tokens)).to(self.device)
         feats2: list[torch.Tensor] = []
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
         x = sample_stage2(

@@ -620,7 +620,7 @@ class Stage1Run:
 
 def train_stage1(
     data_dir: str | Path,
-    out_dir: str | Path,
+    out_dir: str | Path = "runs/pact/stage1",
     config: str = "small",
     part: str = "all",
     steps: int | None = None,

@@ -166,7 +166,7 @@ class HandleStyle:
     """A handle design. ``kind``: "bar", "knob" or "recessed". Metres: ``length`` of the
     bar (or recess) along its grip axis; ``radius`` of the bar or knob; ``standoff`` of
     the bar centre (or the knob's stem) from the front face; ``width`` of a recess across
-    the grip axis; ``depth_frac`` recess depth / panel thickness (at most 15 mm deep);
+    the grip axis; ``depth_frac`` recess depth / panel thickness (10-15 mm deep);
     ``edge_margin`` from a
     door's free edge to the grip line."""
 
@@ -213,33 +213,15 @@ def slab_with_handle(
 
     ``grip`` (3,) is the handle's centre on the front face, ``along`` the axis of the
     bar / recess. Returns (panel boxes, handle trims, Handle): a bar is a cylinder on two
-    posts, a knob a stem and a disc, a recess a pocket cut into the panel (the panel is
-    then five boxes around it). The Handle position is the bar centre, the knob centre
-    or the middle of the pocket.
+    posts, a knob a stem and a disc, a recess a pocket bridged by a flush grip bar
+    (:func:`_recessed_pull`). The Handle position is the bar centre, the knob centre
+    or the middle of the bridge.
     """
     across = 3 - normal - along
     n = _unit(normal)
     face = hi[normal]
     if style.kind == "recessed":
-        d = min(style.depth_frac * (hi[normal] - lo[normal]), 0.015)
-        r_lo, r_hi = grip.copy(), grip.copy()
-        r_lo[along] -= style.length / 2
-        r_hi[along] += style.length / 2
-        r_lo[across] -= style.width / 2
-        r_hi[across] += style.width / 2
-        panel = []
-        for axis, side in ((across, 0), (across, 1), (along, 0), (along, 1)):
-            b_lo, b_hi = lo.copy(), hi.copy()
-            if side == 0:
-                b_hi[axis] = r_lo[axis]
-            else:
-                b_lo[axis] = r_hi[axis]
-            panel.append(box(b_lo, b_hi))
-        back_hi = hi.copy()
-        back_hi[normal] = face - d
-        panel.append(box(lo, back_hi))
-        handle = Handle(position=grip - n * d / 2, axis=_unit(along), kind="recessed")
-        return panel, [], handle
+        return _recessed_pull(lo, hi, normal, style, grip, along)
     panel = [box(lo, hi)]
     if style.kind == "bar":
         centre = grip + n * style.standoff
@@ -265,10 +247,71 @@ def slab_with_handle(
     return panel, trims, Handle(position=knob_centre, axis=_unit(along), kind="knob")
 
 
+#: Recessed pulls (m): pocket depth range, panel left behind the pocket, bridge width
+#: (along the pocket), smallest pocket length and width (across).
+RECESS_DEPTH = (0.010, 0.015)
+RECESS_BACK = 0.004
+RECESS_BRIDGE = 0.012
+RECESS_MIN_LENGTH = 0.08
+RECESS_MIN_WIDTH = 0.026
+
+
+def _recessed_pull(
+    lo: np.ndarray, hi: np.ndarray, normal: int, style: HandleStyle, grip: np.ndarray, along: int
+) -> tuple[list[Primitive], list[Primitive], Handle]:
+    """A recessed pull: a pocket cut into the panel, bridged at its middle by a grip bar
+    flush with the front face (the bar of a flush ring pull or a sliding-door pull).
+
+    A straight pocket gives a finger nothing to hook: the only surfaces that resist an
+    outward pull face inward. The bridge does: two fingers (or a parallel gripper's
+    fingertips, 15 x 17.5 mm) enter the pocket on either side of it and pinch or hook
+    it. The pocket is ``style.length`` long along ``along`` (at least
+    ``RECESS_MIN_LENGTH``, room for a fingertip on each side of the bridge),
+    ``style.width`` wide across (at least ``RECESS_MIN_WIDTH``) and 10-15 mm deep
+    (``depth_frac`` of the panel thickness, leaving ``RECESS_BACK`` behind it). The
+    panel is seven boxes: four around the pocket, the back behind it and the bridge
+    (reaching ``EPS`` into its neighbours). The Handle is the middle of the bridge,
+    its axis the bridge's (across the pocket), so a gripper closes along the pocket.
+    """
+    across = 3 - normal - along
+    n = _unit(normal)
+    face = hi[normal]
+    thick = hi[normal] - lo[normal]
+    d = float(np.clip(style.depth_frac * thick, *RECESS_DEPTH))
+    d = min(d, thick - RECESS_BACK)
+    r_lo, r_hi = grip.copy(), grip.copy()
+    r_lo[along] -= style.length / 2
+    r_hi[along] += style.length / 2
+    r_lo[across] -= style.width / 2
+    r_hi[across] += style.width / 2
+    panel = []
+    for axis, side in ((across, 0), (across, 1), (along, 0), (along, 1)):
+        b_lo, b_hi = lo.copy(), hi.copy()
+        if side == 0:
+            b_hi[axis] = r_lo[axis]
+        else:
+            b_lo[axis] = r_hi[axis]
+        panel.append(box(b_lo, b_hi))
+    back_hi = hi.copy()
+    back_hi[normal] = face - d
+    panel.append(box(lo, back_hi))
+    g_lo, g_hi = r_lo.copy(), r_hi.copy()
+    g_lo[along], g_hi[along] = grip[along] - RECESS_BRIDGE / 2, grip[along] + RECESS_BRIDGE / 2
+    g_lo[across] -= EPS
+    g_hi[across] += EPS
+    g_lo[normal], g_hi[normal] = face - d - EPS, face
+    panel.append(box(g_lo, g_hi))
+    handle = Handle(position=grip - n * d / 2, axis=_unit(across), kind="recessed")
+    return panel, [], handle
+
+
 def _fit_handle(style: HandleStyle, extent_along: float, extent_across: float) -> HandleStyle:
     """``style`` shrunk to fit a panel of the given extents (m)."""
     length = min(style.length, 0.7 * extent_along)
     width = min(style.width, 0.5 * extent_across)
+    if style.kind == "recessed":  # room for a fingertip on either side of the bridge
+        length = min(max(length, RECESS_MIN_LENGTH), 0.7 * extent_along)
+        width = min(max(width, RECESS_MIN_WIDTH), 0.5 * extent_across)
     return HandleStyle(
         style.kind, length, style.radius, style.standoff, width, style.depth_frac, style.edge_margin
     )
