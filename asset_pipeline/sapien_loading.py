@@ -35,7 +35,9 @@ def make_scene(timestep: float = 1 / 240, render: bool | None = None) -> sapien.
     RuntimeError when none exists. ``render=False``: a render system on the CPU
     device (visuals load, nothing draws; fastest, for physics-only checks).
     ``render=None``: the Vulkan device when one works, else the CPU device.
-    ``timestep`` is in seconds.
+    SAPIEN allows one rendering device per process: once a Vulkan renderer exists,
+    a CPU-device render system cannot be made, so ``render=False`` then shares the
+    Vulkan one (still nothing is drawn unless asked). ``timestep`` is in seconds.
     """
     configure_vulkan()
     import sapien
@@ -50,7 +52,11 @@ def make_scene(timestep: float = 1 / 240, render: bool | None = None) -> sapien.
                 raise RuntimeError(f"no Vulkan render device for SAPIEN: {e}") from e
             log.info("no Vulkan render device (%s); using a CPU render system", e)
     if render_system is None:
-        render_system = sapien.render.RenderSystem(sapien.Device("cpu"))
+        try:
+            render_system = sapien.render.RenderSystem(sapien.Device("cpu"))
+        except RuntimeError as e:  # a Vulkan renderer already lives in this process
+            log.debug("CPU render system refused (%s); sharing the process's renderer", e)
+            render_system = sapien.render.RenderSystem()
     scene = sapien.Scene([physx, render_system])
     scene.set_timestep(timestep)
     return scene
