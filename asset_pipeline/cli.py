@@ -465,6 +465,29 @@ def eval_policy(
     print(json.dumps(result, indent=2, default=str))
 
 
+@app.command("train-gen")
+def train_gen(
+    stage: int = typer.Option(1, "--stage", min=1, max=1, help="PAct stage to train (1)."),
+    data: Path = typer.Option(..., "--data", help="Dataset folder (pact dataset build)."),
+    config: str = typer.Option("small", "--config", help="small, full or a config JSON path."),
+    part: str = typer.Option("all", help="vae, flow or all."),
+    out: Path = typer.Option(
+        Path("runs/pact/stage1"), help="Run folder (checkpoints, log.csv, tb/)."
+    ),
+    resume: bool = typer.Option(
+        True, "--resume/--no-resume", help="Continue from the run's checkpoint."
+    ),
+) -> None:
+    """Train the PAct generator (stage 1: sparse-structure VAE, then the part-aware flow).
+
+    Runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
+    """
+    from generator.pact.train import train_stage1
+
+    run = train_stage1(data_dir=data, out_dir=out, config=config, part=part, resume=resume)
+    console.print(f"checkpoints: {run.checkpoints}")
+
+
 dataset_app = typer.Typer(
     help="Rendered procedural training data (docs/dataset.md).", no_args_is_help=True
 )

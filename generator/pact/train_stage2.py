@@ -1,9 +1,13 @@
 """Train PAct stage 2: the SLAT VAE, then the structure-conditioned flow + articulation head.
 
     python -m generator.pact.train_stage2 cache  --data runs/data/train
-    python -m generator.pact.train_stage2 vae    --data runs/data/train --minutes 20
-    python -m generator.pact.train_stage2 flow   --data runs/data/train --minutes 50
-    python -m generator.pact.train_stage2 eval-vae --data runs/data/train
+    python -m generator.pact.train_stage2 vae    --data runs/data/train --minutes 15
+    python -m generator.pact.train_stage2 flow   --data runs/data/train --minutes 45 --threads 1
+    python -m generator.pact.train_stage2 eval-vae --data runs/data/train --threads 1
+    python -m generator.pact.train_stage2 head-stage1 --minutes 6 --threads 1   # ablation
+
+On a 2-core machine shared with other jobs use ``--threads 1``: two OpenMP threads
+spin-wait for each other (a flow step took 7 s with 2 threads, 0.5-0.9 s with 1).
 
 Reads top to bottom: arguments, data, the loop, checkpoints. Both stages hold out the
 last ``--holdout`` objects of the dataset (never trained on) for the reported figures.
