@@ -467,9 +467,12 @@ def eval_policy(
 
 @app.command("train-gen")
 def train_gen(
-    stage: int = typer.Option(1, "--stage", min=1, max=1, help="PAct stage to train (1)."),
+    stage: int = typer.Option(1, "--stage", min=1, max=2, help="PAct stage to train (1 or 2)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder (pact dataset build)."),
     config: str = typer.Option("small", "--config", help="small, full or a config JSON path."),
+    what: str = typer.Option(
+        "flow", help="Stage 2 only: cache, vae, flow, eval-vae or head-stage1 (see docs/pact.md)."
+    ),
     part: str = typer.Option("all", help="vae, flow or all."),
     out: Path = typer.Option(
         Path("runs/pact/stage1"), help="Run folder (checkpoints, log.csv, tb/)."
@@ -478,10 +481,16 @@ def train_gen(
         True, "--resume/--no-resume", help="Continue from the run's checkpoint."
     ),
 ) -> None:
-    """Train the PAct generator (stage 1: sparse-structure VAE, then the part-aware flow).
+    """Train the PAct generator: stage 1 (sparse-structure VAE, then the part-aware flow) or
+    stage 2 (structured-latent VAE, then the stage-2 flow with the articulation head).
 
-    Runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
+    Stage 1 runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
     """
+    if stage == 2:
+        from generator.pact.train_stage2 import main as train_stage2
+
+        train_stage2([what, "--data", str(data)])
+        return
     from generator.pact.train import train_stage1
 
     run = train_stage1(data_dir=data, out_dir=out, config=config, part=part, resume=resume)

@@ -1,11 +1,11 @@
-"""PAct stage 1: part-decomposed sparse-structure generation (see docs/ and the paper).
+"""PAct: part-decomposed articulated object generation (see docs/pact.md and the paper).
 
 Modules: ``ss_vae`` (occupancy <-> latent), ``image_encoder`` (ViT / DINOv2 ViT-L/14),
 ``part_flow`` (part-aware flow transformer), ``flow`` (rectified flow loss and sampler),
 ``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``registry``.
 """
 
-from . import image_encoder, part_flow, ss_vae  # noqa: F401  (register the models)
+from . import articulation, image_encoder, part_flow, slat_vae, ss_vae, stage2_flow  # noqa: F401  (register the models)
 from .checkpoint import load_checkpoint, save_checkpoint
 from .flow import FlowTrainConfig, SamplerConfig, flow_loss, sample
 from .registry import build
