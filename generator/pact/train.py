@@ -129,6 +129,22 @@ def setup_distributed() -> Dist:
     return Dist(rank, world, device)
 
 
+def optimizer_step(
+    opt: torch.optim.Optimizer,
+    loss: torch.Tensor,
+    params: list[nn.Parameter],
+    world: int,
+    clip: float,
+) -> float:
+    """Backward, average gradients across ranks, clip, step; returns the gradient norm."""
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    average_gradients(params, world)
+    grad_norm = float(nn.utils.clip_grad_norm_(params, clip))
+    opt.step()
+    return grad_norm
+
+
 def average_gradients(params: list[nn.Parameter], world: int) -> None:
     """All-reduce (mean) the gradients of ``params`` in one flat buffer."""
     if world == 1:
@@ -381,11 +397,7 @@ def train_vae(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, n
             loss, metrics = vae_loss(
                 vae, occ, tcfg, generator=step_generator(args.seed, step, 1, d.rank)
             )
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        average_gradients(params, d.world)
-        grad_norm = float(nn.utils.clip_grad_norm_(params, args.grad_clip))
-        opt.step()
+        grad_norm = optimizer_step(opt, loss, params, d.world, args.grad_clip)
         step += 1
 
         if step % args.log_every == 0 or step == total:
@@ -574,11 +586,7 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
                 tcfg,
                 generator=step_generator(args.seed, step, 1, d.rank),
             )
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        average_gradients(params, d.world)
-        grad_norm = float(nn.utils.clip_grad_norm_(params, args.grad_clip))
-        opt.step()
+        grad_norm = optimizer_step(opt, loss, params, d.world, args.grad_clip)
         step += 1
 
         if step % args.log_every == 0 or step == total:
