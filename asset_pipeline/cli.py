@@ -424,6 +424,11 @@ def train(
     steps: int = typer.Option(200_000, "--steps", help="Environment steps."),
     eval_assets: str = typer.Option(None, help="Held-out assets for periodic evaluation."),
     num_envs: int = typer.Option(2, help="Parallel envs (processes on CPU)."),
+    vector: str = typer.Option("async", help="CPU: async (a process per env) or sync."),
+    control_mode: str = typer.Option(
+        "pd_ee_delta_pos", help="pd_ee_delta_pos, pd_ee_delta_pose or pd_joint_delta_pos."
+    ),
+    minutes: float = typer.Option(None, help="Stop after this wall-clock (then save)."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
         "runs/ppo", help="Run folder: policy.zip, progress.csv, eval.csv, TensorBoard."
@@ -440,6 +445,9 @@ def train(
         total_timesteps=steps,
         eval_assets=eval_assets,
         num_envs=num_envs,
+        vector=vector,
+        control_mode=control_mode,
+        max_minutes=minutes,
         sim_backend=sim_backend,
         out_dir=out,
         seed=seed,

@@ -490,6 +490,22 @@ def static_checks(spec: UrdfSpec, tol: Tolerances) -> list[Check]:
             else f"roots {roots}; unknown links in {bad_refs}; several parents: {multi}",
         )
     )
+    n_movable = len(spec.movable_joints)
+    checks.append(
+        Check(
+            "has_movable_part",
+            "static",
+            "asset",
+            n_movable > 0,
+            value=n_movable,
+            tolerance=">= 1 prismatic or revolute joint",
+            message=""
+            if n_movable
+            else f"{spec.path.name} has {len(spec.links)} link(s) and no prismatic or revolute "
+            "joint: nothing to articulate (the generator found no movable part; give a part "
+            "mask, or check the input image)",
+        )
+    )
     for j in spec.movable_joints:
         n = float(np.linalg.norm(j.axis))
         ok = bool(np.isfinite(j.axis).all() and abs(n - 1.0) <= tol.axis_norm)
@@ -1268,7 +1284,14 @@ def check_asset(
     if missing:
         return checks
     checks += timed("static", lambda: static_checks(spec, tol))
-    structural = {"single_root", "axis_unit", "limits_ordered", "mass_positive", "inertia_valid"}
+    structural = {
+        "single_root",
+        "has_movable_part",
+        "axis_unit",
+        "limits_ordered",
+        "mass_positive",
+        "inertia_valid",
+    }
     if any(not c.passed and c.name in structural for c in checks):
         return checks  # SAPIEN would reject or silently alter these: stop here
     checks += timed("load", lambda: load_checks(spec, tol, options))

@@ -4,7 +4,7 @@ Writes ``OUT/curve.csv`` (timesteps, wall_seconds, success_rate, mean_return) an
 ``OUT/curve.png`` (matplotlib), prints JSON. Train assets: procedural desks and
 cabinets of the train split; held-out: the test split.
 
-    python bench/rl.py --total-timesteps 500000 --num-envs 2 --out runs/bench_rl
+    python bench/rl.py --minutes 60 --num-envs 2 --out runs/bench_rl
     python bench/rl.py --total-timesteps 2000 --eval-every 1000 --n-train 2 --n-test 1   # smoke
 """
 
@@ -32,6 +32,8 @@ def plot(rows: list[dict], path: Path) -> bool:
     ax.set_xlabel("wall-clock (min)")
     ax.set_ylabel("held-out success rate")
     ax.set_ylim(-0.02, 1.02)
+    ax.axhline(0.6, color="grey", linestyle="--", linewidth=1, label="target 0.6 in 60 min")
+    ax.legend(loc="upper left")
     ax.set_title("PPO OpenDrawer-v0: 20 train / 10 held-out drawers")
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -51,10 +53,15 @@ def main() -> None:
         "--n-train", type=int, default=10, help="per category (desk, cabinet): 2 x 10 = 20"
     )
     ap.add_argument("--n-test", type=int, default=5, help="per category: 2 x 5 = 10 held out")
-    ap.add_argument("--total-timesteps", type=int, default=500_000)
+    ap.add_argument("--total-timesteps", type=int, default=2_000_000)
+    ap.add_argument(
+        "--minutes", type=float, default=60.0, help="stop training after this wall-clock"
+    )
     ap.add_argument("--num-envs", type=int, default=2)
+    ap.add_argument("--vector", default="async", help="async (processes) or sync")
+    ap.add_argument("--control-mode", default="pd_ee_delta_pos")
     ap.add_argument("--eval-every", type=int, default=25_000)
-    ap.add_argument("--eval-episodes", type=int, default=10)
+    ap.add_argument("--eval-episodes", type=int, default=20)
     a = ap.parse_args()
     out = Path(a.out)
     train_dir = build_procedural(out / "assets" / "train", n=a.n_train, split="train")
@@ -64,7 +71,10 @@ def main() -> None:
         assets=str(train_dir),
         eval_assets=str(test_dir),
         num_envs=a.num_envs,
+        vector=a.vector,
+        control_mode=a.control_mode,
         total_timesteps=a.total_timesteps,
+        max_minutes=a.minutes,
         eval_every=a.eval_every,
         eval_episodes=a.eval_episodes,
         out_dir=str(out / "ppo"),

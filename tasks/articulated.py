@@ -85,7 +85,7 @@ class ArticulatedPartEnv(BaseEnv):
     close_goal = 0.25
     start_open_range = (0.8, 1.0)  # closing tasks start with the part this far open
     handle_standoff = 0.12
-    max_reward = 5.0
+    max_reward = 6.0
 
     def __init__(
         self,
@@ -385,6 +385,7 @@ class ArticulatedPartEnv(BaseEnv):
             "handle_pos": handle,
             "tcp_to_handle": tcp_to_handle,
             "tcp_to_handle_dist": torch.linalg.norm(tcp_to_handle, dim=1),
+            "is_grasped": self.agent.is_grasping(self.target_link),
         }
 
     def _get_obs_extra(self, info: dict) -> dict[str, torch.Tensor]:
@@ -397,6 +398,7 @@ class ArticulatedPartEnv(BaseEnv):
                 target_qvel=self.target_qvel()[:, None],
                 target_qlimits=torch.stack([self.qlow, self.qhigh], dim=1),
                 open_fraction=info["open_fraction"][:, None],
+                is_grasped=info["is_grasped"][:, None].float(),
                 joint_axis=self.joint_axis_world(),
             )
         return obs
@@ -410,12 +412,17 @@ class ArticulatedPartEnv(BaseEnv):
         return torch.clamp(frac / self.open_goal, 0.0, 1.0)
 
     def compute_dense_reward(self, obs: Any, action: torch.Tensor, info: dict) -> torch.Tensor:
+        """reach (1 - tanh(5 d), d = tcp to handle) + grasp (1 while both fingers press on
+        the target part) + 3 x progress; ``max_reward`` on success. Once the part has
+        moved 5% of the way, reach and grasp count as full (a push or a hook is as good
+        as a grasp)."""
         reach = 1.0 - torch.tanh(5.0 * info["tcp_to_handle_dist"])
+        grasp = info["is_grasped"].float()
         progress = self.progress(info)
-        # once the part moves, stop asking the gripper to stay at the handle (a push or
-        # a hook is as good as a grasp)
-        reach = torch.where(progress > 0.05, torch.ones_like(reach), reach)
-        reward = reach + 3.0 * progress
+        moved = progress > 0.05
+        reach = torch.where(moved, torch.ones_like(reach), reach)
+        grasp = torch.where(moved, torch.ones_like(grasp), grasp)
+        reward = reach + grasp + 3.0 * progress
         reward = torch.where(info["success"], torch.full_like(reward, self.max_reward), reward)
         return reward
 

@@ -95,12 +95,69 @@ def push_point_link(part: MovablePart, radial: float, depth: float) -> np.ndarra
     return a * (h @ a) + r * (radial * radius) - n * depth
 
 
-def _swept_points(part: MovablePart) -> np.ndarray:
-    """(M, 3) points of the volume a door sweeps: hinge-to-handle segments along the path."""
+def _swept_points(part: MovablePart, bounds: tuple | None = None) -> np.ndarray:
+    """(M, 3) points of the volume a door sweeps: hinge-to-handle segments along the path.
+
+    With the object's ``bounds``, a door on a horizontal hinge (bottom-hinged, a lid)
+    also spans the object's extent along its hinge: it comes down over its full width,
+    onto a robot standing beside the handle.
+    """
     origin = np.asarray(part.origin, dtype=float)
     path = handle_path(part, np.linspace(0.0, 1.0, 12))
     s = np.linspace(0.0, 1.15, 8)[:, None, None]
-    return (origin + s * (path - origin)[None]).reshape(-1, 3)
+    pts = (origin + s * (path - origin)[None]).reshape(-1, 3)
+    axis = np.asarray(part.axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    if bounds is None or abs(axis[2]) > 0.7:
+        return pts
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (0, 1)])
+    span = corners @ axis
+    flat = pts - np.outer(pts @ axis, axis)
+    along = np.linspace(span.min(), span.max(), 9)
+    return (flat[None] + along[:, None, None] * axis).reshape(-1, 3)
+
+
+ARM_CLEARANCE = 0.08  # m kept between the arm's link axes and the door or the object
+
+
+def _arm_clearance(part: MovablePart, bounds: tuple, fractions: np.ndarray):
+    """``clear(k, points)``: whether arm points (object frame) keep off the door at
+    ``lower + fractions[k] * range`` (a slab from the hinge out past the handle, over
+    the object's extent along the hinge) and off the object's closed box."""
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    axis = np.asarray(part.axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    origin = np.asarray(part.origin, dtype=float)
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    span = (corners - origin) @ axis
+    a0, a1 = span.min() - ARM_CLEARANCE, span.max() + ARM_CLEARANCE
+    path = handle_path(part, fractions)
+    normals = opening_normals(part, fractions)
+    m = ARM_CLEARANCE
+
+    def clear(k: int, pts: np.ndarray) -> bool:
+        d = pts - origin
+        r_vec = path[k] - origin
+        r_vec = r_vec - axis * (r_vec @ axis)
+        radius = np.linalg.norm(r_vec)
+        radial = d @ (r_vec / radius)
+        normal = d @ normals[k]
+        along = d @ axis
+        in_door = (
+            (radial > -m)
+            & (radial < radius + 0.1 + m)
+            & (normal > -0.08 - m)
+            & (normal < m)
+            & (along > a0)
+            & (along < a1)
+        )
+        in_body = ((pts > lo - m) & (pts < hi + m)).all(1)
+        return not (in_door.any() or in_body.any())
+
+    return clear
 
 
 def _box_distance_xy(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -120,6 +177,8 @@ def grasp_poses(part: MovablePart, fractions: np.ndarray = FOLLOW_FRACTIONS) -> 
     for f, p, n in zip(fractions, path, normals, strict=True):
         bar = bar0 if part.joint_type == "prismatic" else _rot(axis, f * part.range) @ bar0
         a = -n
+        if part.handle_kind == "knob" and abs(a[2]) < 0.7:  # pinched sideways (the solver)
+            bar = np.array([0.0, 0.0, 1.0])
         c = np.cross(a, bar)
         if np.linalg.norm(c) < 1e-3:
             c = np.cross(a, np.cross(np.array([0.0, 0.0, 1.0]), a))
@@ -151,6 +210,18 @@ class PandaReach:
         self.limits = np.asarray(articulation.get_qlimits(), dtype=float)[:7]
         self.ready = np.asarray(ready_qpos, dtype=float)
         self.mask = [1] * 7 + [0] * (len(self.ready) - 7)
+        # shoulder, upper arm, elbow and forearm: the links that must keep off the door
+        arm = [f"panda_link{k}" for k in (2, 3, 4, 5)]
+        self.arm_links = [i for i, n in enumerate(names) if any(n.endswith(a) for a in arm)]
+
+    def arm_points(self, q: np.ndarray) -> np.ndarray:
+        """(M, 3) points along the shoulder, upper arm, elbow and forearm (root frame)."""
+        self.model.compute_forward_kinematics(np.asarray(q, dtype=float))
+        pts = np.array([self.model.get_link_pose(i).p for i in self.arm_links], dtype=float)
+        if len(pts) < 2:
+            return pts
+        mids = 0.5 * (pts[1:] + pts[:-1])
+        return np.concatenate([pts, mids])
 
     def _ik(self, T: np.ndarray, q0: np.ndarray) -> np.ndarray | None:
         import sapien
@@ -168,12 +239,20 @@ class PandaReach:
         return q
 
     def follow(
-        self, base: np.ndarray, yaw: float, grasps: list, standoff: float = 0.12
+        self,
+        base: np.ndarray,
+        yaw: float,
+        grasps: list,
+        standoff: float = 0.12,
+        clear: Any = None,
     ) -> tuple[float, np.ndarray | None]:
+        """``clear(k, points)``: optional check that the arm's points (object frame) at
+        grasp ``k`` keep off the door (and the object); a failing grasp ends the path."""
         c, s = np.cos(yaw), np.sin(yaw)
         to_root = np.eye(4)
         to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
         to_root[:3, 3] = -to_root[:3, :3] @ base
+        from_root = np.linalg.inv(to_root)
         q = self.ready.copy()
         reached, start = 0, None
         for k, poses in enumerate(grasps):
@@ -189,6 +268,10 @@ class PandaReach:
                     cand = self._ik(to_root @ T, q_pre)
                 else:
                     cand = self._ik(to_root @ T, q)
+                if cand is not None and clear is not None:
+                    pts = self.arm_points(cand)
+                    if not clear(k, pts @ from_root[:3, :3].T + from_root[:3, 3]):
+                        cand = None
                 if cand is not None and (
                     best is None or np.abs(cand - q).sum() < np.abs(best[0] - q).sum()
                 ):
@@ -226,7 +309,7 @@ def robot_base_for_part(
     grasp_f = PATH_FRACTIONS
     path = handle_path(part, grasp_f)  # (K, 3)
     approach = -opening_normals(part, grasp_f)  # (K, 3) gripper pointing into the face
-    swept = _swept_points(part)
+    swept = _swept_points(part, bounds)
     centre = path.mean(axis=0)
     xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
     ys = np.arange(lo[1] - 1.0, hi[1] + 1.0, 0.05)
@@ -274,9 +357,10 @@ def robot_base_for_part(
     extra = rng.choice(rest, size=min(n_checked[1], len(rest)), replace=False) if rest else []
     order = ranked[: n_checked[0]] + [int(i) for i in extra]
     grasps = grasp_poses(part)
+    clear = _arm_clearance(part, bounds, FOLLOW_FRACTIONS)
     best_score, pick, start = -np.inf, best, None
     for i in order:
-        frac, q = reach.follow(base[i], float(yaw[i]), grasps, standoff)
+        frac, q = reach.follow(base[i], float(yaw[i]), grasps, standoff, clear)
         score = frac - 0.01 * cost[i]
         if score > best_score:
             best_score, pick, start = score, i, q

@@ -62,6 +62,7 @@ class SolverConfig:
     grasp_depth: float = 0.005  # how far past the handle point the tcp goes (into the bar)
     prismatic_speed: float = 0.02  # metres of joint motion commanded per control step
     revolute_speed: float = 0.05  # radians per control step
+    handle_speed: float = 0.02  # metres per control step of a door's handle along its arc
     overshoot: float = 0.06  # open (or close) this far past the goal fraction
     stall_steps: int = 10
     max_steps: int = 300
@@ -77,6 +78,8 @@ class SolverConfig:
     push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
+    goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
+    ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
 
 
@@ -181,6 +184,48 @@ class ScriptedSolver:
         euler = Rotation.from_rotvec(rv).as_euler("XYZ")
         return np.concatenate([dp / POS_STEP, euler / ROT_STEP, [gripper]]).astype(np.float32)
 
+    def _ik_solvable(self, action: np.ndarray) -> bool:
+        """Whether the arm controller's inverse kinematics (CPU: Pinocchio CLIK, 100
+        iterations, from the current joints) converges for ``action``; where it does not,
+        the controller holds the arm where it is (see ``_feasible``)."""
+        try:
+            import torch
+
+            ctrl = self.u.agent.controller.controllers["arm"]
+            a = ctrl._preprocess_action(torch.as_tensor(action[None, :6], dtype=torch.float32))
+            prev = ctrl._target_pose if ctrl.config.use_target else ctrl.ee_pose_at_base
+            target = ctrl.compute_target_pose(prev, a)
+            q = ctrl.kinematics.compute_ik(
+                pose=target,
+                q0=ctrl.articulation.get_qpos(),
+                is_delta_pose=False,
+                current_pose=ctrl.ee_pose_at_base,
+                solver_config=ctrl.config.delta_solver_config,
+            )
+        except Exception:  # another controller layout: no check
+            return True
+        return q is not None
+
+    def _feasible(self, action: np.ndarray) -> np.ndarray:
+        """``action`` with its arm part shrunk (halved up to 4 times) until the controller's
+        inverse kinematics converges: near a singularity it fails for a full step (the arm
+        then freezes) but not for a smaller one in the same direction."""
+        for k in range(5):
+            scaled = action.copy()
+            scaled[:6] *= 0.5**k
+            if self._ik_solvable(scaled):
+                return scaled
+        if not self._phase.startswith(("push", "release")):
+            return action  # holding the handle: keep the grasp where it is
+        # stuck at a stretched singularity: pull the hand in toward the shoulder a little
+        tcp, base = self._tcp(), self._base()
+        shoulder = base[:3, :3] @ np.array([0.0, 0.0, 0.333]) + base[:3, 3]
+        d = base[:3, :3].T @ (shoulder - tcp[:3, 3])
+        escape = np.zeros_like(action)
+        escape[:3] = 0.02 * d / max(np.linalg.norm(d), 1e-6) / POS_STEP
+        escape[6:] = action[6:]
+        return escape if self._ik_solvable(escape) else action
+
     def _errors(self, goal: np.ndarray) -> tuple[float, float]:
         cur = self._tcp()
         dp = float(np.linalg.norm(goal[:3, 3] - cur[:3, 3]))
@@ -213,6 +258,19 @@ class ScriptedSolver:
         """World position of a point fixed in the target link's frame."""
         L = self._link()
         return L[:3, :3] @ point_link + L[:3, 3]
+
+    def _retreat(self, back: float) -> np.ndarray:
+        """Tcp goal ``back`` metres out of the face it holds, a little up and drawn back
+        toward the robot's base (a falling door comes down toward the hand; a stretched
+        arm can still pull in)."""
+        goal = self._tcp()
+        p = goal[:3, 3]
+        to_base = self._base()[:3, 3] - p
+        to_base[2] = 0.0
+        n = np.linalg.norm(to_base)
+        pull = to_base / n * min(0.1, n) if n > 1e-6 else np.zeros(3)
+        goal[:3, 3] = p - goal[:3, 2] * back + pull + np.array([0.0, 0.0, 0.05])
+        return goal
 
     def _go(self, goal_fn, gripper: float, do, tol: float = 0.02, budget: int = 30) -> bool:
         """Step toward ``goal_fn()`` (a (4, 4) pose, re-evaluated every step) until within ``tol``."""
@@ -328,6 +386,7 @@ class ScriptedSolver:
         bridged = part.handle_kind == "recessed"
         bare = part.handle_kind == "none"
         recessed = bridged or bare
+        knob = part.handle_kind == "knob"
         g_reach = GRIPPER_CLOSED if bare else (cfg.recess_open if bridged else GRIPPER_OPEN)
         g_hold = GRIPPER_CLOSED
         step = 0
@@ -340,6 +399,8 @@ class ScriptedSolver:
 
         def do(action: np.ndarray) -> dict:
             nonlocal step, info
+            if cfg.ik_check:
+                action = self._feasible(action)
             _, _, _, _, info = u.step(action[None])
             step += 1
             self._step = step
@@ -372,6 +433,10 @@ class ScriptedSolver:
             bar = L[:3, :3] @ handle_axis_link
             if bare:  # fingers closing along the face: the "bar" across that
                 bar = np.cross(approach, bar)
+            elif knob and abs(approach[2]) < 0.7:
+                # fingers closing sideways round a knob: a vertical pinch would catch
+                # the worktop overhanging a drawer (or the drawer above)
+                bar = np.array([0.0, 0.0, 1.0])
             T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
@@ -409,7 +474,9 @@ class ScriptedSolver:
         target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
         target = float(np.clip(target, 0.02, 0.98))
         sign = -1.0 if closing else 1.0
-        speed = cfg.prismatic_speed if part.joint_type == "prismatic" else cfg.revolute_speed
+        speed = cfg.prismatic_speed
+        if part.joint_type == "revolute":  # the handle no faster than a drawer's
+            speed = min(cfg.revolute_speed, cfg.handle_speed / max(hinge_frame_link(part)[3], 0.05))
         axis_obj = _np(u.joint_axis_world())[0].astype(float)
         phase = self._phase = "move"
         history: list[float] = []
@@ -443,12 +510,12 @@ class ScriptedSolver:
         # under its own weight when let go; any other door or lid is pushed open from
         # inside (the gripper goes round its free edge and presses on its inner face)
         g_final = g_hold
-        if not closing and part.joint_type == "revolute" and frac() < target:
+        short = frac() < u.open_goal + cfg.goal_margin  # past the goal: just hold on
+        if not closing and part.joint_type == "revolute" and short:
             if frac() >= cfg.release_fraction and self._gravity_torque() > 0.5:
                 phase = self._phase = "release"
                 g_final = GRIPPER_OPEN
-                away = self._tcp()
-                away[:3, 3] -= away[:3, 2] * 0.08
+                away = self._retreat(0.08)
                 for _ in range(cfg.release_steps):
                     info = do(self._action(away, GRIPPER_OPEN))
                     if bool(_np(info["success"])[0]):

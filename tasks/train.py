@@ -39,10 +39,18 @@ class Args:
     """held-out assets for evaluation (default: the training assets)"""
     category: str | None = None
     num_envs: int = 2
+    vector: str = "async"
+    """CPU only: "async" (one process per env, gymnasium AsyncVectorEnv) or "sync" (all
+    envs stepped in turn in this process: no IPC, for one core or many small envs)"""
     total_timesteps: int = 200_000
+    max_minutes: float | None = None
+    """stop (then evaluate and save) after this much wall-clock, whatever the step count"""
     sim_backend: str = "physx_cpu"
     """physx_cpu (vector of processes) or physx_cuda (one batched GPU env)"""
-    control_mode: str = "pd_joint_delta_pos"
+    control_mode: str = "pd_ee_delta_pos"
+    """the Panda's end-effector position deltas + gripper: the easiest to learn (the
+    start pose already points the gripper at the handle); pd_ee_delta_pose and
+    pd_joint_delta_pos work too"""
     reward_mode: str = "normalized_dense"
     max_episode_steps: int = 100
     reconfiguration_freq: int = 10
@@ -56,12 +64,20 @@ class Args:
     gamma: float = 0.9
     gae_lambda: float = 0.95
     ent_coef: float = 0.0
+    log_std_init: float = 0.0
+    normalize_obs: bool = True
+    """running mean/std observation normalization (SB3 VecNormalize); the statistics are
+    saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
     net_arch: list[int] = field(default_factory=lambda: [256, 256])
     seed: int = 0
     out_dir: str = "runs/ppo"
     eval_every: int = 20_000
     eval_episodes: int = 10
     device: str = "cpu"
+    torch_threads: int = 1
+    """torch threads per process (learner and each env worker): on a few shared cores
+    one thread each is fastest (the env and the learner alternate, the workers run side
+    by side); 0 leaves torch's default"""
 
 
 # --------------------------------------------------------------------------- envs
@@ -127,6 +143,7 @@ def make_cpu_env(
 
 def _env_fn(args: Args, rank: int):
     def thunk() -> gym.Env:
+        _set_threads(args.torch_threads)
         return make_cpu_env(
             args.env_id,
             args.assets,
@@ -139,6 +156,13 @@ def _env_fn(args: Args, rank: int):
         )
 
     return thunk
+
+
+def _set_threads(n: int) -> None:
+    if n > 0:
+        import torch
+
+        torch.set_num_threads(n)
 
 
 def sb3_vec_env(venv: gym.vector.VectorEnv):
@@ -212,7 +236,7 @@ def make_train_env(args: Args):
     if args.sim_backend == "physx_cpu":
         fns = [_env_fn(args, i) for i in range(args.num_envs)]
         mode = gym.vector.AutoresetMode.SAME_STEP
-        if args.num_envs == 1:
+        if args.num_envs == 1 or args.vector == "sync":
             venv = gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
         else:
             venv = gym.vector.AsyncVectorEnv(fns, autoreset_mode=mode, context="spawn")
@@ -240,6 +264,43 @@ def make_train_env(args: Args):
 # --------------------------------------------------------------------------- evaluation
 
 
+@dataclass
+class ObsNorm:
+    """SB3 VecNormalize's observation transform as plain arrays (saved as ``obs_norm.npz``)."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    clip: float = 10.0
+    epsilon: float = 1e-8
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        z = (obs - self.mean) / np.sqrt(self.var + self.epsilon)
+        return np.clip(z, -self.clip, self.clip).astype(np.float32)
+
+    @classmethod
+    def from_vec_normalize(cls, vn: Any) -> ObsNorm:
+        return cls(vn.obs_rms.mean.copy(), vn.obs_rms.var.copy(), vn.clip_obs, vn.epsilon)
+
+    def save(self, path: Path) -> None:
+        np.savez(path, mean=self.mean, var=self.var, clip=self.clip, epsilon=self.epsilon)
+
+    @classmethod
+    def load(cls, path: Path) -> ObsNorm:
+        z = np.load(path)
+        return cls(z["mean"], z["var"], float(z["clip"]), float(z["epsilon"]))
+
+
+def load_policy(path: str | Path) -> tuple[Any, ObsNorm | None, dict[str, Any]]:
+    """A saved run's PPO policy, its observation normalization (if any) and its Args."""
+    from stable_baselines3 import PPO
+
+    path = Path(path)
+    run = path.parent
+    norm = ObsNorm.load(run / "obs_norm.npz") if (run / "obs_norm.npz").is_file() else None
+    saved = json.loads((run / "args.json").read_text()) if (run / "args.json").is_file() else {}
+    return PPO.load(str(path), device="cpu"), norm, saved
+
+
 def evaluate(
     policy: Any,
     env_id: str,
@@ -248,18 +309,24 @@ def evaluate(
     seed: int = 10_000,
     video_dir: str | Path | None = None,
     deterministic: bool = True,
+    obs_norm: ObsNorm | None = None,
     **env_kwargs: Any,
 ) -> dict[str, Any]:
     """Success rate and mean return of ``policy`` (an SB3 model or a path to one) on ``assets``.
 
     Episode k is seeded ``seed + k`` (each reset loads an asset sampled from ``assets``).
+    A policy given by path brings its run's observation normalization and its control
+    mode and episode length (``args.json``) unless ``env_kwargs`` say otherwise.
     With ``video_dir`` each episode is written as mp4 (imageio) or, failing that, PNG frames.
     """
     if isinstance(policy, (str, Path)):
-        from stable_baselines3 import PPO
-
-        policy = PPO.load(str(policy), device="cpu")
+        policy, saved_norm, saved = load_policy(policy)
+        obs_norm = obs_norm or saved_norm
+        for key in ("control_mode", "max_episode_steps"):
+            if key in saved:
+                env_kwargs.setdefault(key, saved[key])
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
+    norm = obs_norm or (lambda o: o)
     successes, returns, ids = [], [], []
     try:
         for k in range(episodes):
@@ -267,7 +334,7 @@ def evaluate(
             frames = [env.render()] if video_dir else []
             done, ret, info = False, 0.0, {}
             while not done:
-                action, _ = policy.predict(obs, deterministic=deterministic)
+                action, _ = policy.predict(norm(obs), deterministic=deterministic)
                 obs, r, term, trunc, info = env.step(action)
                 ret += r
                 done = term or trunc
@@ -321,11 +388,16 @@ def train(args: Args) -> dict[str, Any]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
 
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    _set_threads(args.torch_threads)
+    (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
+    if args.normalize_obs:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=args.gamma)
     model = PPO(
         "MlpPolicy",
         venv,
@@ -338,13 +410,16 @@ def train(args: Args) -> dict[str, Any]:
         ent_coef=args.ent_coef,
         seed=args.seed,
         device=args.device,
-        policy_kwargs={"net_arch": list(args.net_arch)},
+        policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
         verbose=0,
     )
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     t0 = time.time()
     history: list[dict[str, Any]] = []
+
+    def current_norm() -> ObsNorm | None:
+        return ObsNorm.from_vec_normalize(venv) if args.normalize_obs else None
 
     class PeriodicEval(BaseCallback):
         def __init__(self) -> None:
@@ -357,6 +432,7 @@ def train(args: Args) -> dict[str, Any]:
                 args.env_id,
                 eval_assets,
                 args.eval_episodes,
+                obs_norm=current_norm(),
                 category=args.category,
                 control_mode=args.control_mode,
                 max_episode_steps=args.max_episode_steps,
@@ -382,6 +458,11 @@ def train(args: Args) -> dict[str, Any]:
             if args.eval_every > 0 and self.num_timesteps >= self.next_eval:
                 self.run_eval()
                 self.next_eval = self.num_timesteps + args.eval_every
+            if args.max_minutes is not None and time.time() - t0 > 60 * args.max_minutes:
+                log.info(
+                    "stopping at %d steps: %.1f min reached", self.num_timesteps, args.max_minutes
+                )
+                return False
             return True
 
         def _on_training_end(self) -> None:
@@ -393,9 +474,10 @@ def train(args: Args) -> dict[str, Any]:
     try:
         model.learn(total_timesteps=args.total_timesteps, callback=PeriodicEval())
         model.save(out / "policy")
+        if args.normalize_obs:
+            current_norm().save(out / "obs_norm.npz")
     finally:
         venv.close()
-    (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     return {
         "policy": str(out / "policy.zip"),
         "progress_csv": str(out / "progress.csv"),
@@ -412,10 +494,13 @@ def parse_args(argv: list[str] | None = None) -> Args:
     parser = argparse.ArgumentParser(description="PPO on the drawer / door tasks")
     for name, value in asdict(Args()).items():
         flag = "--" + name.replace("_", "-")
-        if isinstance(value, list):
+        if isinstance(value, bool):
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=value)
+        elif isinstance(value, list):
             parser.add_argument(flag, type=int, nargs="+", default=value)
-        elif value is None:
-            parser.add_argument(flag, type=str, default=None)
+        elif value is None:  # optional fields: str unless their annotation says float
+            kind = float if "float" in str(Args.__dataclass_fields__[name].type) else str
+            parser.add_argument(flag, type=kind, default=None)
         else:
             parser.add_argument(flag, type=type(value), default=value)
     return Args(**vars(parser.parse_args(argv)))

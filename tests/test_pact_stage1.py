@@ -419,3 +419,24 @@ def test_generate_parts_end_to_end_shapes():
     assert occ.shape == (1, 3, 16, 16, 16) and occ.dtype == torch.bool
     assert exists.shape == (1, 3)
     assert not occ[~exists].any()
+
+
+def test_tidy_parts_hand_computed_case():
+    import numpy as np
+
+    from generator.pact.stage1 import tidy_parts
+
+    occ = np.zeros((4, 8, 8, 8), bool)
+    occ[0, :6, :6, :6] = True  # base: 216 voxels
+    occ[1, 4:8, 0:3, 0:3] = True  # a door: 36 voxels, 18 of them inside the base
+    occ[2, 0, 7, 7] = True  # a one-voxel speck
+    occ[3, 0:2, 0:2, 6:8] = True  # a part the mask does not show
+    exists = np.array([True, False, True, True])  # the head dropped the door
+    out, ex = tidy_parts(occ, exists, mask_ids=np.array([0, 1, 2, 3]))
+    assert ex.tolist() == [True, True, False, False]  # the mask's part list wins
+    assert out.reshape(4, -1).sum(1).tolist() == [216 - 18, 36, 0, 0]  # the door keeps its voxels
+    assert not (out[0] & out[1]).any()
+    # without a mask the existence flags decide
+    out, ex = tidy_parts(occ, exists)
+    assert ex.tolist() == [True, False, False, True]
+    assert out[3].sum() == 8 and out[0].sum() == 216

@@ -116,7 +116,7 @@ def test_dense_reward_rises_as_gripper_approaches(procedural_assets: Path) -> No
             rewards.append(float(r[0]))
         assert dists[-1] < dists[0] - 0.02
         assert rewards[-1] > rewards[0]
-        assert all(0.0 <= x <= 5.0 for x in rewards)
+        assert all(0.0 <= x <= u.max_reward for x in rewards)
     finally:
         env.close()
 

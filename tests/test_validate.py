@@ -231,6 +231,22 @@ def test_zero_mass_fails(copy_of):
     assert not report.check("mass_positive", "drawer_0")[0].passed
 
 
+def test_single_link_object_fails_with_a_clear_reason(tmp_path):
+    from generator.articulated import ArticulatedObject
+
+    obj = sample_object("microwave", 0)
+    base_only = ArticulatedObject(
+        [obj.parts[0]], category=obj.category, scale=obj.scale, provenance=obj.provenance
+    )
+    d = save_bundle(base_only, tmp_path / "microwave_base_only")
+    build_asset(d)
+    report = validate_asset(d, preview=False)
+    assert report.status == "failed"
+    check = report.check("has_movable_part", "asset")[0]
+    assert not check.passed and "nothing to articulate" in check.message
+    assert not report.check("sapien_load", "asset")  # stopped before SAPIEN
+
+
 def test_overlapping_siblings_are_shrunk(copy_of):
     d = copy_of("cabinet")
     spec = read_urdf(d / "model.urdf")

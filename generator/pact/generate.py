@@ -178,7 +178,7 @@ class PActGenerator:
                 "use generate_from_occupancy or train stage 1"
             )
         from .flow import sample
-        from .stage1 import LatentStats
+        from .stage1 import LatentStats, tidy_parts
 
         s1 = self.stage1
         img, m, _, _ = s1.inputs(image, mask)
@@ -198,6 +198,8 @@ class PActGenerator:
             occ = s1.models["vae"].decode_parts(stats.denormalize(latents)) > 0
             exists = torch.sigmoid(exists_logits) > 0.5
         occ = (occ & exists[..., None, None, None])[0].cpu().numpy()
+        ids = None if m is None else np.unique(m[0].cpu().numpy())
+        occ, _ = tidy_parts(occ, exists[0].cpu().numpy(), ids)
         K = self.cfg.flow.max_parts
         out = np.zeros((K, *occ.shape[1:]), bool)
         out[: min(K, len(occ))] = occ[:K]

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 import torch.nn as nn
 from safetensors.torch import load_file, save_file
@@ -143,6 +144,50 @@ def generate_parts(
     occ = models["vae"].decode_parts(latents) > 0  # (B, T, R, R, R)
     exists = torch.sigmoid(exists_logits) > exists_threshold  # (B, T)
     return occ & exists[..., None, None, None], exists
+
+
+def tidy_parts(
+    occ: np.ndarray,
+    exists: np.ndarray,
+    mask_ids: np.ndarray | None = None,
+    min_voxels: int = 8,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stage-1 output -> disjoint part occupancies, before meshing.
+
+    ``occ`` (T, R, R, R) bool (dropped slots already all False), ``exists`` (T,) bool;
+    ``mask_ids`` the ids present in the input's part mask (0 background, slot + 1 parts).
+
+    - With a mask the slots it shows are the parts, whatever the existence logits say
+      (the mask is the user's part list); the others are dropped.
+    - A voxel claimed by several slots goes to one: a movable part (slot >= 1) wins over
+      the base, and among movable parts the lower slot wins (the base's shell around a
+      door or drawer is where stage 1 errs; overlapping links fail validation).
+    - Each slot keeps its 26-connected components of at least ``min_voxels`` voxels
+      (the base its largest one when all are smaller): specks become no part.
+
+    Returns (occupancy, exists) with ``exists[k] == occupancy[k].any()``.
+    """
+    from scipy import ndimage
+
+    occ = np.asarray(occ, bool).copy()
+    exists = np.asarray(exists, bool).copy()
+    T = len(occ)
+    if mask_ids is not None:
+        slots = {int(i) - 1 for i in np.asarray(mask_ids).ravel() if 0 < int(i) <= T}
+        exists = np.array([k in slots for k in range(T)])
+    occ &= exists[:, None, None, None]
+    claimed = np.zeros(occ.shape[1:], bool)
+    for k in [*range(1, T), 0]:  # movable parts first (lower slot first), the base last
+        occ[k] &= ~claimed
+        labels, n = ndimage.label(occ[k], structure=np.ones((3, 3, 3), bool))
+        if n:
+            sizes = np.bincount(labels.ravel())[1:]
+            keep = np.flatnonzero(sizes >= min_voxels) + 1
+            if len(keep) == 0 and k == 0:
+                keep = [int(np.argmax(sizes)) + 1]
+            occ[k] = np.isin(labels, keep)
+        claimed |= occ[k]
+    return occ, occ.reshape(T, -1).any(axis=1)
 
 
 # --- the stage-1 checkpoint: image encoder + flow in one folder ------------------------

@@ -37,7 +37,7 @@ from generator.articulated import ArticulatedObject, Joint, Part
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1
+from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
 log = logging.getLogger(__name__)
 
@@ -213,7 +213,11 @@ class Stage1Generator:
         occ, exists = generate_parts(
             self.models, img, m, self.sampler, gen, latent_stats=self.latent_stats
         )
-        return occ.cpu().numpy(), exists.cpu().numpy()
+        occ, exists = occ.cpu().numpy(), exists.cpu().numpy()
+        for b in range(len(occ)):  # disjoint parts, the mask's part list (stage1.tidy_parts)
+            ids = None if m is None else np.unique(m[b].cpu().numpy())
+            occ[b], exists[b] = tidy_parts(occ[b], exists[b], ids)
+        return occ, exists
 
     # --- Generator interface ------------------------------------------------------------
 
