@@ -247,14 +247,15 @@ class PandaReach:
         clear: Any = None,
     ) -> tuple[float, np.ndarray | None]:
         """``clear(k, points)``: optional check that the arm's points (object frame) at
-        grasp ``k`` keep off the door (and the object); a failing grasp ends the path."""
+        grasp ``k`` keep off the door and the object; grasps where they do not count in
+        ``self.last_hits`` (a fraction of the grasps), clear solutions are preferred."""
         c, s = np.cos(yaw), np.sin(yaw)
         to_root = np.eye(4)
         to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
         to_root[:3, 3] = -to_root[:3, :3] @ base
         from_root = np.linalg.inv(to_root)
         q = self.ready.copy()
-        reached, start = 0, None
+        reached, start, hits = 0, None, 0
         for k, poses in enumerate(grasps):
             best = None
             for T in poses:
@@ -268,20 +269,23 @@ class PandaReach:
                     cand = self._ik(to_root @ T, q_pre)
                 else:
                     cand = self._ik(to_root @ T, q)
-                if cand is not None and clear is not None:
+                if cand is None:
+                    continue
+                hit = False
+                if clear is not None:
                     pts = self.arm_points(cand)
-                    if not clear(k, pts @ from_root[:3, :3].T + from_root[:3, 3]):
-                        cand = None
-                if cand is not None and (
-                    best is None or np.abs(cand - q).sum() < np.abs(best[0] - q).sum()
-                ):
-                    best = (cand, q_pre)
+                    hit = not clear(k, pts @ from_root[:3, :3].T + from_root[:3, 3])
+                key = (hit, float(np.abs(cand - q).sum()))
+                if best is None or key < best[2]:
+                    best = (cand, q_pre, key)
             if best is None:
                 break
             q = best[0]
+            hits += int(best[2][0])
             if k == 0:
                 start = best[1]
             reached += 1
+        self.last_hits = hits / len(grasps)
         return reached / len(grasps), start
 
 
@@ -361,7 +365,8 @@ def robot_base_for_part(
     best_score, pick, start = -np.inf, best, None
     for i in order:
         frac, q = reach.follow(base[i], float(yaw[i]), grasps, standoff, clear)
-        score = frac - 0.01 * cost[i]
+        # the arm's elbow in the door's way knocks it back or jams: as bad as half the path
+        score = frac - 0.5 * reach.last_hits - 0.01 * cost[i]
         if score > best_score:
             best_score, pick, start = score, i, q
     return base[pick], float(yaw[pick]), start

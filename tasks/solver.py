@@ -25,7 +25,17 @@ opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.plac
    ajar is pushed from inside (the closed fingers go round its free edge and press
    on its inner face along the hinge circle; if going round the edge knocks the
    part back by ``push_max_loss``, the push is abandoned);
-5. hold still until the success flag holds (the part must be nearly still).
+5. hold still until the success flag holds (the part must be nearly still); a part
+   that stalls already past the goal fraction is held there (a lid let go falls shut).
+
+Knobs are pinched sideways (a vertical pinch catches a worktop overhanging a drawer).
+A door's handle moves at most ``handle_speed`` per step (a wide fridge door's grasp
+slips when swung at the revolute speed). Every action is checked against the arm
+controller's own inverse kinematics (CPU: Pinocchio CLIK, 100 iterations from the
+current joints; where it fails the controller holds the arm still, for good near a
+singularity): the step is halved until it converges, and away from the handle a
+stuck arm is drawn in toward its shoulder. A bottom-hinged door is let go with the
+hand drawn out of its face, up and back toward the base.
 
 ``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
 distance, finger gap (a grasp that slipped closes to 0) and the arm's smallest
@@ -155,6 +165,8 @@ class ScriptedSolver:
                 f"the scripted solver needs control_mode='pd_ee_delta_pose', got {self.u.control_mode!r}"
             )
         self.cfg = config or SolverConfig()
+        self._ik_failed = False  # the last step's inverse kinematics failed at every scale
+        self._phase = ""
 
     # ---- state
     def _tcp(self) -> np.ndarray:
@@ -210,11 +222,13 @@ class ScriptedSolver:
         """``action`` with its arm part shrunk (halved up to 4 times) until the controller's
         inverse kinematics converges: near a singularity it fails for a full step (the arm
         then freezes) but not for a smaller one in the same direction."""
+        self._ik_failed = False
         for k in range(5):
             scaled = action.copy()
             scaled[:6] *= 0.5**k
             if self._ik_solvable(scaled):
                 return scaled
+        self._ik_failed = True
         if not self._phase.startswith(("push", "release")):
             return action  # holding the handle: keep the grasp where it is
         # stuck at a stretched singularity: pull the hand in toward the shoulder a little
@@ -488,7 +502,8 @@ class ScriptedSolver:
                 break
             history.append(f)
             tcp = self._tcp()
-            if follow_rotation and len(history) > 2 and self._frozen(last_tcp, tcp):
+            stuck = self._ik_failed if cfg.ik_check else self._frozen(last_tcp, tcp)
+            if follow_rotation and len(history) > 2 and stuck:
                 # the controller's IK found no solution for the turning grasp (it then
                 # holds its last target): keep the hand's orientation and only pull along
                 # the path; the grasp pivots about the pads' normal or the bar

@@ -52,7 +52,20 @@ class Args:
     start pose already points the gripper at the handle); pd_ee_delta_pose and
     pd_joint_delta_pos work too"""
     reward_mode: str = "normalized_dense"
-    max_episode_steps: int = 100
+    control_freq: int = 20
+    """policy steps per simulated second (ManiSkill's default 20; physics stays at
+    100 Hz): 10 halves the decisions per episode at little cost in physics, so the
+    same wall-clock covers nearly twice the simulated time"""
+    max_episode_steps: int = 50
+    """training episode length (a hand-written drawer policy needs about 25 steps at 20 Hz)"""
+    eval_max_episode_steps: int | None = None
+    """evaluation episode length (None: the task's registered default, 100 steps for
+    drawers and 150 for doors at 20 Hz, i.e. 5 s and 7.5 s, scaled to ``control_freq``)"""
+    ignore_terminations: bool = True
+    """training episodes run their full length past success (ManiSkill's
+    ``ignore_terminations``): ending at success would make reaching it cost the dense
+    reward of the remaining steps, so the policy would learn to hover short of it.
+    Evaluation ends an episode at its first success (success once)."""
     reconfiguration_freq: int = 10
     """reload an asset every k episodes per env (1: every episode, slow on CPU where a
     reload costs 0.3-0.5 s; 0: never); resets in between re-sample part and poses"""
@@ -100,30 +113,38 @@ class FlattenStateObs(gym.ObservationWrapper):
 
 
 class SuccessInfo(gym.Wrapper):
-    """Adds SB3's ``is_success`` and the episode statistics ``episode={r, l, t}`` to infos."""
+    """Adds SB3's ``is_success`` (success at any step of the episode) and the episode
+    statistics ``episode={r, l, t}`` to the infos of an episode's last step."""
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
-        self._ret, self._len, self._t0 = 0.0, 0, time.time()
+        self._ret, self._len, self._t0, self._success = 0.0, 0, time.time(), False
 
     def reset(self, **kw: Any) -> tuple[Any, dict]:
-        self._ret, self._len = 0.0, 0
+        self._ret, self._len, self._success = 0.0, 0, False
         return self.env.reset(**kw)
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
         obs, r, term, trunc, info = self.env.step(action)
         self._ret += float(r)
         self._len += 1
+        self._success |= bool(info.get("success", False))
         if term or trunc:
-            info["is_success"] = bool(info.get("success", False))
+            info["is_success"] = self._success
             info["episode"] = {"r": self._ret, "l": self._len, "t": time.time() - self._t0}
         return obs, float(r), bool(term), bool(trunc), info
 
 
 def make_cpu_env(
-    env_id: str, assets: str, seed: int = 0, render_mode: str | None = None, **kwargs: Any
+    env_id: str,
+    assets: str,
+    seed: int = 0,
+    render_mode: str | None = None,
+    ignore_terminations: bool = False,
+    **kwargs: Any,
 ) -> gym.Env:
-    """One ManiSkill env on physx_cpu as a plain gymnasium env with numpy observations."""
+    """One ManiSkill env on physx_cpu as a plain gymnasium env with numpy observations
+    (``ignore_terminations``: episodes end only at the time limit, not at success)."""
     from mani_skill.utils.wrappers import CPUGymWrapper
 
     import tasks  # noqa: F401  (registers the envs)
@@ -135,7 +156,7 @@ def make_cpu_env(
     env = gym.make(
         env_id, assets=assets, sim_backend="physx_cpu", render_mode=render_mode, **kwargs
     )
-    env = CPUGymWrapper(env)
+    env = CPUGymWrapper(env, ignore_terminations=ignore_terminations)
     env = SuccessInfo(FlattenStateObs(env))
     env.action_space.seed(seed)
     return env
@@ -153,6 +174,8 @@ def _env_fn(args: Args, rank: int):
             reward_mode=args.reward_mode,
             max_episode_steps=args.max_episode_steps,
             reconfiguration_freq=args.reconfiguration_freq,
+            ignore_terminations=args.ignore_terminations,
+            sim_config={"control_freq": args.control_freq},
         )
 
     return thunk
@@ -322,9 +345,13 @@ def evaluate(
     if isinstance(policy, (str, Path)):
         policy, saved_norm, saved = load_policy(policy)
         obs_norm = obs_norm or saved_norm
-        for key in ("control_mode", "max_episode_steps"):
-            if key in saved:
-                env_kwargs.setdefault(key, saved[key])
+        if "control_mode" in saved:
+            env_kwargs.setdefault("control_mode", saved["control_mode"])
+        freq = int(saved.get("control_freq", 20))
+        if freq != 20:
+            env_kwargs.setdefault("sim_config", {"control_freq": freq})
+        for k, v in _episode_steps(env_id, saved.get("eval_max_episode_steps"), freq).items():
+            env_kwargs.setdefault(k, v)
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
     norm = obs_norm or (lambda o: o)
     successes, returns, ids = [], [], []
@@ -355,6 +382,17 @@ def evaluate(
             for a, s, r in zip(ids, successes, returns, strict=True)
         ],
     }
+
+
+def _episode_steps(env_id: str, n: int | None, control_freq: int) -> dict[str, int]:
+    """``max_episode_steps`` for evaluation: ``n``, else the task's registered length
+    (set for 20 Hz) scaled to ``control_freq``, else nothing (the registered default)."""
+    if n is None and control_freq != 20:
+        import tasks  # noqa: F401  (registers the envs)
+
+        registered = gym.spec(env_id).max_episode_steps
+        n = None if registered is None else max(1, round(registered * control_freq / 20))
+    return {} if n is None else {"max_episode_steps": n}
 
 
 def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
@@ -435,7 +473,8 @@ def train(args: Args) -> dict[str, Any]:
                 obs_norm=current_norm(),
                 category=args.category,
                 control_mode=args.control_mode,
-                max_episode_steps=args.max_episode_steps,
+                sim_config={"control_freq": args.control_freq},
+                **_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
             )
             row = {
                 "timesteps": self.num_timesteps,
@@ -444,6 +483,9 @@ def train(args: Args) -> dict[str, Any]:
                 "mean_return": res["mean_return"],
             }
             history.append(row)
+            self.model.save(out / "policy")  # the latest policy, usable while training runs
+            if args.normalize_obs:
+                current_norm().save(out / "obs_norm.npz")
             self.logger.record("eval/success_rate", res["success_rate"])
             self.logger.record("eval/return", res["mean_return"])
             new = not eval_csv.exists()
@@ -499,7 +541,8 @@ def parse_args(argv: list[str] | None = None) -> Args:
         elif isinstance(value, list):
             parser.add_argument(flag, type=int, nargs="+", default=value)
         elif value is None:  # optional fields: str unless their annotation says float
-            kind = float if "float" in str(Args.__dataclass_fields__[name].type) else str
+            annotation = str(Args.__dataclass_fields__[name].type)
+            kind = float if "float" in annotation else int if "int" in annotation else str
             parser.add_argument(flag, type=kind, default=None)
         else:
             parser.add_argument(flag, type=type(value), default=value)

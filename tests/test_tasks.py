@@ -216,3 +216,27 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
     assert rows[0].startswith("timesteps,wall_seconds,success_rate") and len(rows) == 2
     assert out["last_eval"] is not None
     assert np.isfinite(out["last_eval"]["mean_return"])
+    # the saved policy brings its observation normalization and control mode
+    from tasks.train import ObsNorm, evaluate, load_policy
+
+    _, norm, saved = load_policy(run / "policy.zip")
+    assert isinstance(norm, ObsNorm) and norm.mean.shape == norm.var.shape
+    assert saved["control_mode"] == args.control_mode
+    res = evaluate(str(run / "policy.zip"), "OpenDrawer-v0", str(procedural_assets), episodes=1)
+    assert len(res["episodes"]) == 1 and np.isfinite(res["mean_return"])
+
+
+def test_obs_norm_matches_vec_normalize():
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from tasks.train import ObsNorm
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), norm_reward=False)
+    venv.reset()
+    for _ in range(50):
+        venv.step(np.array([venv.action_space.sample()]))
+    obs = np.array([[0.5, -0.2, 3.0]], dtype=np.float32)
+    norm = ObsNorm.from_vec_normalize(venv)
+    np.testing.assert_allclose(norm(obs), venv.normalize_obs(obs), rtol=1e-5)
+    hand = np.clip((obs - venv.obs_rms.mean) / np.sqrt(venv.obs_rms.var + 1e-8), -10, 10)
+    np.testing.assert_allclose(norm(obs), hand, rtol=1e-5)
