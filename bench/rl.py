@@ -4,7 +4,7 @@ Writes ``OUT/curve.csv`` (timesteps, wall_seconds, success_rate, mean_return) an
 ``OUT/curve.png`` (matplotlib), prints JSON. Train assets: procedural desks and
 cabinets of the train split; held-out: the test split.
 
-    python bench/rl.py --minutes 60 --num-envs 2 --out runs/bench_rl
+    python bench/rl.py --minutes 60 --num-envs 4 --out runs/bench_rl
     python bench/rl.py --total-timesteps 2000 --eval-every 1000 --n-train 2 --n-test 1   # smoke
 """
 
@@ -57,10 +57,10 @@ def main() -> None:
     ap.add_argument(
         "--minutes", type=float, default=60.0, help="stop training after this wall-clock"
     )
-    ap.add_argument("--num-envs", type=int, default=2)
+    ap.add_argument("--num-envs", type=int, default=4)
     ap.add_argument("--vector", default="async", help="async (processes) or sync")
     ap.add_argument("--control-mode", default="pd_ee_delta_pos")
-    ap.add_argument("--eval-every", type=int, default=25_000)
+    ap.add_argument("--eval-every", type=int, default=15_000)
     ap.add_argument("--eval-episodes", type=int, default=20)
     a = ap.parse_args()
     out = Path(a.out)

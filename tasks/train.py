@@ -38,7 +38,7 @@ class Args:
     eval_assets: str | None = None
     """held-out assets for evaluation (default: the training assets)"""
     category: str | None = None
-    num_envs: int = 2
+    num_envs: int = 4
     vector: str = "async"
     """CPU only: "async" (one process per env, gymnasium AsyncVectorEnv) or "sync" (all
     envs stepped in turn in this process: no IPC, for one core or many small envs)"""
@@ -52,12 +52,13 @@ class Args:
     start pose already points the gripper at the handle); pd_ee_delta_pose and
     pd_joint_delta_pos work too"""
     reward_mode: str = "normalized_dense"
-    control_freq: int = 20
-    """policy steps per simulated second (ManiSkill's default 20; physics stays at
+    control_freq: int = 10
+    """policy steps per simulated second (ManiSkill's default is 20; physics stays at
     100 Hz): 10 halves the decisions per episode at little cost in physics, so the
-    same wall-clock covers nearly twice the simulated time"""
-    max_episode_steps: int = 50
-    """training episode length (a hand-written drawer policy needs about 25 steps at 20 Hz)"""
+    same wall-clock covers nearly twice the simulated time; evaluation runs at the same
+    frequency"""
+    max_episode_steps: int = 30
+    """training episode length (a hand-written drawer policy needs about 13 steps at 10 Hz)"""
     eval_max_episode_steps: int | None = None
     """evaluation episode length (None: the task's registered default, 100 steps for
     drawers and 150 for doors at 20 Hz, i.e. 5 s and 7.5 s, scaled to ``control_freq``)"""
@@ -70,14 +71,14 @@ class Args:
     """reload an asset every k episodes per env (1: every episode, slow on CPU where a
     reload costs 0.3-0.5 s; 0: never); resets in between re-sample part and poses"""
     learning_rate: float = 3e-4
-    n_steps: int = 200
+    n_steps: int = 128
     """rollout length per env"""
-    batch_size: int = 200
-    n_epochs: int = 8
+    batch_size: int = 256
+    n_epochs: int = 5
     gamma: float = 0.9
     gae_lambda: float = 0.95
     ent_coef: float = 0.0
-    log_std_init: float = 0.0
+    log_std_init: float = -1.0
     normalize_obs: bool = True
     """running mean/std observation normalization (SB3 VecNormalize); the statistics are
     saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
