@@ -177,29 +177,13 @@ class PActGenerator:
                 "stage-1 checkpoints (weights/small/ss_vae, weights/small/stage1) are missing; "
                 "use generate_from_occupancy or train stage 1"
             )
-        from .flow import sample
-        from .stage1 import LatentStats, tidy_parts
-
-        s1 = self.stage1
-        img, m, _, _ = s1.inputs(image, mask)
         feats: list[torch.Tensor] = []
-        gen = torch.Generator(device=self.device).manual_seed(self.seed)
-        with torch.no_grad():
-            cond = s1.models["image_encoder"](img)
-            latents, exists_logits = sample(
-                s1.models["flow"],
-                cond,
-                m,
-                s1.sampler,
-                gen,
-                callback=lambda i, t, f: feats.append(f[0].float().cpu()),
-            )
-            stats = s1.latent_stats or LatentStats()
-            occ = s1.models["vae"].decode_parts(stats.denormalize(latents)) > 0
-            exists = torch.sigmoid(exists_logits) > 0.5
-        occ = (occ & exists[..., None, None, None])[0].cpu().numpy()
-        ids = None if m is None else np.unique(m[0].cpu().numpy())
-        occ, _ = tidy_parts(occ, exists[0].cpu().numpy(), ids)
+        occ, _ = self.stage1.predict_parts_batch(
+            [image],
+            None if mask is None else [mask],
+            callback=lambda i, t, f: feats.append(f[0].float().cpu()),
+        )
+        occ = occ[0]  # (T, R, R, R), tidied (stage1.tidy_parts)
         K = self.cfg.flow.max_parts
         out = np.zeros((K, *occ.shape[1:]), bool)
         out[: min(K, len(occ))] = occ[:K]

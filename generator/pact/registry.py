@@ -8,7 +8,9 @@ from JSON), so the small and full models are the same code with different data.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import torch.nn as nn
@@ -67,6 +69,26 @@ def config_from_dict(config_cls: type, data: dict[str, Any]) -> Any:
         )
     kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
     return config_cls(**kwargs)
+
+
+def sections_from_dict(classes: dict[str, type], data: dict[str, Any], what: str) -> dict[str, Any]:
+    """A stage config's sections (name -> config dataclass) from its JSON dict: a
+    missing section takes its defaults, an unknown one is an error naming ``what``."""
+    unknown = set(data) - set(classes)
+    if unknown:
+        raise ValueError(f"unknown {what} config sections {sorted(unknown)}")
+    return {k: config_from_dict(cls, data.get(k, {})) for k, cls in classes.items()}
+
+
+def read_config_json(name_or_path: str | Path, config_dir: Path, what: str) -> dict[str, Any]:
+    """``name`` (no suffix) -> ``config_dir/name.json``, else a JSON path; its contents."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = config_dir / f"{name_or_path}.json"
+    if not path.is_file():
+        known = sorted(p.stem for p in config_dir.glob("*.json"))
+        raise FileNotFoundError(f"no {what} config {name_or_path!r} at {path}; packaged: {known}")
+    return json.loads(path.read_text())
 
 
 def _lookup(name: str) -> tuple[type[nn.Module], type]:

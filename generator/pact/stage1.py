@@ -73,21 +73,11 @@ _SECTIONS = {
 
 
 def config_from_dict(data: dict[str, Any]) -> Stage1Config:
-    unknown = set(data) - set(_SECTIONS)
-    if unknown:
-        raise ValueError(f"unknown stage-1 config sections {sorted(unknown)}")
-    kwargs = {k: registry.config_from_dict(cls, data.get(k, {})) for k, cls in _SECTIONS.items()}
-    return Stage1Config(**kwargs).check()
+    return Stage1Config(**registry.sections_from_dict(_SECTIONS, data, "stage-1")).check()
 
 
 def load_config(name_or_path: str | Path) -> Stage1Config:
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = CONFIG_DIR / f"{name_or_path}.json"
-    if not path.is_file():
-        known = sorted(p.stem for p in CONFIG_DIR.glob("*.json"))
-        raise FileNotFoundError(f"no stage-1 config {name_or_path!r}; packaged: {known}")
-    return config_from_dict(json.loads(path.read_text()))
+    return config_from_dict(registry.read_config_json(name_or_path, CONFIG_DIR, "stage-1"))
 
 
 def build_stage1(cfg: Stage1Config) -> dict[str, nn.Module]:
@@ -134,11 +124,15 @@ def generate_parts(
     generator: torch.Generator | None = None,
     exists_threshold: float = 0.5,
     latent_stats: LatentStats | None = None,
+    callback: Any = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """images (B, 3, H, W) in [0, 1], mask (B, H', W') ids or None ->
-    occupancy (B, T, R, R, R) bool (dropped slots all False), exists (B, T) bool."""
+    occupancy (B, T, R, R, R) bool (dropped slots all False), exists (B, T) bool.
+    ``callback(step, t, features)`` receives each sampling step's last-block features."""
     cond = models["image_encoder"](images)  # (B, N_img, D_img)
-    latents, exists_logits = sample(models["flow"], cond, mask, sampler, generator)
+    latents, exists_logits = sample(
+        models["flow"], cond, mask, sampler, generator, callback=callback
+    )
     if latent_stats is not None:
         latents = latent_stats.denormalize(latents)
     occ = models["vae"].decode_parts(latents) > 0  # (B, T, R, R, R)

@@ -202,16 +202,26 @@ class Stage1Generator:
         return occ[0], exists[0]
 
     def predict_parts_batch(
-        self, images: list[np.ndarray], masks: list[np.ndarray] | None = None
+        self,
+        images: list[np.ndarray],
+        masks: list[np.ndarray] | None = None,
+        callback: Any = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Several images at once (faster per image on a CPU): occupancies (B, T, R, R, R)
-        bool and used slots (B, T) bool. ``masks``: one per image, or None for none."""
+        bool and used slots (B, T) bool. ``masks``: one per image, or None for none.
+        ``callback(step, t, features)`` receives each sampling step's last-block features."""
         rows = [self.inputs(im, None if masks is None else masks[i]) for i, im in enumerate(images)]
         img = torch.cat([r[0] for r in rows])  # (B, 3, S, S)
         m = None if masks is None else torch.cat([r[1] for r in rows])  # (B, S, S)
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
         occ, exists = generate_parts(
-            self.models, img, m, self.sampler, gen, latent_stats=self.latent_stats
+            self.models,
+            img,
+            m,
+            self.sampler,
+            gen,
+            latent_stats=self.latent_stats,
+            callback=callback,
         )
         occ, exists = occ.cpu().numpy(), exists.cpu().numpy()
         for b in range(len(occ)):  # disjoint parts, the mask's part list (stage1.tidy_parts)

@@ -11,7 +11,6 @@ own), ``flow`` (``stage2_flow``) and ``head`` (``articulation``).
 from __future__ import annotations
 
 import dataclasses
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -88,7 +87,6 @@ class Stage2Config:
         return dataclasses.asdict(self)
 
 
-_SECTIONS = {f.name: f.type for f in dataclasses.fields(Stage2Config)}
 _CLASSES = {
     "vae": SlatVAEConfig,
     "vae_train": SlatVAETrainConfig,
@@ -101,21 +99,12 @@ _CLASSES = {
 
 
 def config_from_dict(data: dict[str, Any]) -> Stage2Config:
-    unknown = set(data) - set(_CLASSES)
-    if unknown:
-        raise ValueError(f"unknown stage-2 config sections {sorted(unknown)}")
-    kwargs = {k: registry.config_from_dict(c, data.get(k, {})) for k, c in _CLASSES.items()}
-    return Stage2Config(**kwargs).check()
+    return Stage2Config(**registry.sections_from_dict(_CLASSES, data, "stage-2")).check()
 
 
 def load_config(name_or_path: str | Path) -> Stage2Config:
     """``load_config("stage2_small")`` reads configs/stage2_small.json; else a JSON path."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = CONFIG_DIR / f"{name_or_path}.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"no stage-2 config {name_or_path!r} at {path}")
-    return config_from_dict(json.loads(path.read_text()))
+    return config_from_dict(registry.read_config_json(name_or_path, CONFIG_DIR, "stage-2"))
 
 
 def build_stage2(cfg: Stage2Config) -> dict[str, nn.Module]:
