@@ -423,7 +423,7 @@ def train(
     assets: str = typer.Option(..., "--assets", help="Folder of built assets or catalog file."),
     steps: int = typer.Option(200_000, "--steps", help="Environment steps."),
     eval_assets: str = typer.Option(None, help="Held-out assets for periodic evaluation."),
-    num_envs: int = typer.Option(2, help="Parallel envs (processes on CPU)."),
+    num_envs: int = typer.Option(4, help="Parallel envs (processes with --vector async)."),
     vector: str = typer.Option("async", help="CPU: async (a process per env) or sync."),
     control_mode: str = typer.Option(
         "pd_ee_delta_pos", help="pd_ee_delta_pos, pd_ee_delta_pose or pd_joint_delta_pos."
