@@ -22,7 +22,8 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-console = Console(stderr=True)
+# messages are never hard-wrapped: a path in an error stays on one line (greppable)
+console = Console(stderr=True, soft_wrap=True)
 
 
 def wide_console() -> Console:
