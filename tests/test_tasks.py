@@ -95,6 +95,23 @@ def test_success_flag_follows_the_target_joint(procedural_assets: Path, env_id: 
         env.close()
 
 
+def test_is_grasped_only_while_the_fingers_hold_the_handle(procedural_assets: Path) -> None:
+    from tasks.solver import ScriptedSolver
+
+    env = _make("OpenDrawer-v0", procedural_assets, control_mode="pd_ee_delta_pose")
+    try:
+        env.reset(seed=1)
+        u = env.unwrapped
+        assert not bool(u.evaluate()["is_grasped"][0])  # 12 cm in front of the handle
+        res = ScriptedSolver(env).solve()
+        assert res.success
+        assert bool(u.evaluate()["is_grasped"][0])  # still pinching the pulled handle
+        obs = u.get_obs()
+        assert obs.shape[0] == 1 and torch.isfinite(obs).all()
+    finally:
+        env.close()
+
+
 def test_dense_reward_rises_as_gripper_approaches(procedural_assets: Path) -> None:
     from tasks.solver import ScriptedSolver
 
