@@ -36,7 +36,14 @@ import torch.nn.functional as F
 import torch.utils.checkpoint
 
 from .registry import register
-from .transformer import MLP, CrossAttention, SelfAttention, TimestepEmbedder, sincos_3d
+from .transformer import (
+    MLP,
+    CrossAttention,
+    SelfAttention,
+    TimestepEmbedder,
+    init_adaln_transformer,
+    sincos_3d,
+)
 
 
 @dataclass
@@ -131,18 +138,7 @@ class PartFlowTransformer(nn.Module):
         self._init_weights()
 
     def _init_weights(self) -> None:
-        for m in self.modules():
-            if isinstance(m, nn.Linear):
-                nn.init.xavier_uniform_(m.weight)
-                nn.init.zeros_(m.bias)
-        nn.init.normal_(self.t_embed.mlp[0].weight, std=0.02)
-        nn.init.normal_(self.t_embed.mlp[2].weight, std=0.02)
-        for block in self.blocks:  # adaLN-Zero: each block starts as the identity
-            nn.init.zeros_(block.adaLN[-1].weight)
-            nn.init.zeros_(block.adaLN[-1].bias)
-        for lin in (self.final_adaLN[-1], self.out_proj, self.mask_proj):
-            nn.init.zeros_(lin.weight)
-            nn.init.zeros_(lin.bias)
+        init_adaln_transformer(self, zero=(self.final_adaLN[-1], self.out_proj, self.mask_proj))
 
     # --- shapes -----------------------------------------------------------------------
 

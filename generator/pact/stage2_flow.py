@@ -34,7 +34,14 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from .registry import register
-from .transformer import MLP, CrossAttention, RMSNorm, TimestepEmbedder, sincos_3d
+from .transformer import (
+    MLP,
+    CrossAttention,
+    RMSNorm,
+    TimestepEmbedder,
+    init_adaln_transformer,
+    sincos_3d,
+)
 
 
 @dataclass
@@ -152,18 +159,7 @@ class Stage2FlowTransformer(nn.Module):
         self._init_weights()
 
     def _init_weights(self) -> None:
-        for m in self.modules():
-            if isinstance(m, nn.Linear):
-                nn.init.xavier_uniform_(m.weight)
-                nn.init.zeros_(m.bias)
-        nn.init.normal_(self.t_embed.mlp[0].weight, std=0.02)
-        nn.init.normal_(self.t_embed.mlp[2].weight, std=0.02)
-        for block in self.blocks:  # adaLN-Zero
-            nn.init.zeros_(block.adaLN[-1].weight)
-            nn.init.zeros_(block.adaLN[-1].bias)
-        for lin in (self.final_adaLN[-1], self.out_proj):
-            nn.init.zeros_(lin.weight)
-            nn.init.zeros_(lin.bias)
+        init_adaln_transformer(self, zero=(self.final_adaLN[-1], self.out_proj))
 
     def embed_tokens(self, tokens: TokenBatch) -> torch.Tensor:
         """Input tokens -> (B, L, D): projection + part embedding + position code."""

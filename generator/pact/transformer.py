@@ -128,3 +128,22 @@ def sincos_3d(grid: int, dim: int) -> torch.Tensor:
     pe = torch.cat(parts, dim=-1)  # (L, 3 * per_axis)
     pe = F.pad(pe, (0, dim - pe.shape[1]))
     return pe.float()  # (L, dim)
+
+
+def init_adaln_transformer(model: nn.Module, zero: tuple[nn.Linear, ...]) -> None:
+    """TRELLIS/DiT initialization of a flow transformer with ``t_embed``, ``blocks``
+    (each with an ``adaLN`` head) and the output layers ``zero``: Xavier-uniform linears
+    with zero biases, N(0, 0.02) timestep MLP, adaLN-Zero (every block starts as the
+    identity) and zeroed output layers (the model starts by predicting 0)."""
+    for m in model.modules():
+        if isinstance(m, nn.Linear):
+            nn.init.xavier_uniform_(m.weight)
+            nn.init.zeros_(m.bias)
+    nn.init.normal_(model.t_embed.mlp[0].weight, std=0.02)
+    nn.init.normal_(model.t_embed.mlp[2].weight, std=0.02)
+    for block in model.blocks:
+        nn.init.zeros_(block.adaLN[-1].weight)
+        nn.init.zeros_(block.adaLN[-1].bias)
+    for lin in zero:
+        nn.init.zeros_(lin.weight)
+        nn.init.zeros_(lin.bias)
