@@ -10,6 +10,13 @@ volume the part sweeps. With the robot's kinematics (:class:`PandaReach`, SAPIEN
 Pinocchio model) the best candidates are re-ranked by how far along the path the
 grasp stays reachable within the joint limits, and the arm starts at the pre-grasp
 joint positions found on the way.
+
+A fixed Panda cannot follow the handle of a wide fridge door round its whole arc (up
+to 0.9 m radius, 70-90 degrees to the goal). When no base lets it, bases are also
+ranked for a pull-then-push plan (:func:`push_plan_poses`): pull the door a third of
+the way or so, let go, go round the free edge and push the inner face on
+(:func:`push_waypoints_link`), the robot standing where the door, swept only as far
+as the push takes it, keeps clear of its base.
 """
 
 from __future__ import annotations
@@ -95,15 +102,156 @@ def push_point_link(part: MovablePart, radial: float, depth: float) -> np.ndarra
     return a * (h @ a) + r * (radial * radius) - n * depth
 
 
-def _swept_points(part: MovablePart, bounds: tuple | None = None) -> np.ndarray:
-    """(M, 3) points of the volume a door sweeps: hinge-to-handle segments along the path.
+PUSH_DEPTH = 0.05  # m behind the hinge plane assumed for the inner face when planning
+PUSH_EDGE_CLEARANCE = 0.08  # m beyond the free edge when going round it
+PUSH_SWITCHES = (0.35, 0.45)  # open fractions at which a planned push takes over
+PUSH_TILTS = (0.0, 0.25 * np.pi, 0.5 * np.pi)  # pusher orientations, see push_waypoints_link
+PUSH_END = 0.9  # of the range: how far a planned push must reach
+# a push is less sure than a grasp (the arm may knock the door going round its edge): a
+# plan's followed fraction must beat the grasp's by this much
+PUSH_MARGIN = 0.35
+PUSH_FREE_EDGE = 1.12  # the free edge's distance from the hinge, guessed from the handle's
+
+
+def push_waypoints_link(
+    part: MovablePart,
+    tilt: float,
+    depth: float = PUSH_DEPTH,
+    clearance: float = 0.025,
+    edge_clearance: float = PUSH_EDGE_CLEARANCE,
+    edge: float | None = None,
+) -> list[tuple[str, list[np.ndarray]]]:
+    """Link-frame tcp poses (two finger orientations each) going from a let-go handle
+    round the free edge to the pushing pose on the door's inner face: ``edge`` (beyond
+    the free edge, in front of the face), ``behind`` (beyond it, behind the inner face)
+    and ``press`` (``PUSH_RADIUS`` of the handle's radius from the hinge, behind the
+    inner face ``depth`` metres behind the hinge plane).
+
+    The closed fingers point along ``cos(tilt) * -radial + sin(tilt) * normal``: at 0
+    a paddle lying along the inner face, pointing at the hinge (fingers closing along
+    the axis, the arm reaching round from beyond the free edge); at pi/2 fingertips
+    poking the inner face in the direction it opens (a robot standing behind the door
+    pushes it away from itself); in between, slanted. ``clearance`` is kept between
+    the inner face and the tcp for the paddle (a finger's half width), 1 cm for a poke.
+    The hand's width (0.2 m across the fingers) lies along the hinge, clear of the free
+    edge, ``edge`` metres from the hinge (default: ``PUSH_FREE_EDGE`` x the handle's).
+    """
+    a, r, n, radius = hinge_frame_link(part)
+    z = np.cos(tilt) * -r + np.sin(tilt) * n
+    inside = depth + clearance * np.cos(tilt) + 0.01 * np.sin(tilt)
+    edge = PUSH_FREE_EDGE * radius if edge is None else edge
+    beyond = (edge + edge_clearance) / radius
+    frames = []
+    for y in (a, -a):
+        R = np.eye(4)
+        R[:3, :3] = np.stack([np.cross(y, z), y, z], axis=1)
+        frames.append(R)
+    out = []
+    for name, radial, dep in (
+        ("edge", beyond, -0.1),
+        ("behind", beyond, inside),
+        ("press", PUSH_RADIUS, inside),
+    ):
+        p = push_point_link(part, radial, dep)
+        poses = []
+        for R in frames:
+            T = R.copy()
+            T[:3, 3] = p
+            poses.append(T)
+        out.append((name, poses))
+    return out
+
+
+def link_pose(part: MovablePart, fraction: float) -> np.ndarray:
+    """(4, 4) the part's link frame in the object frame at ``lower + fraction * range``
+    (the link frame is the object frame moved to the joint origin when closed)."""
+    T = np.eye(4)
+    axis = np.asarray(part.axis, dtype=float)
+    origin = np.asarray(part.origin, dtype=float)
+    if part.joint_type == "prismatic":
+        T[:3, 3] = origin + axis / np.linalg.norm(axis) * fraction * part.range
+    else:
+        T[:3, :3] = _rot(axis, fraction * part.range)
+        T[:3, 3] = origin
+    return T
+
+
+def _interpolate(a: list, b: list, n: int) -> list:
+    """``n`` candidate lists stepping from the poses ``a`` to ``b`` (matched by index,
+    the last of the shorter list repeated): straight moves, rotations slerped."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    out = []
+    for k in range(1, n + 1):
+        t = k / n
+        poses = []
+        for i in range(max(len(a), len(b))):
+            A, B = a[min(i, len(a) - 1)], b[min(i, len(b) - 1)]
+            T = np.eye(4)
+            T[:3, :3] = Slerp([0, 1], Rotation.from_matrix([A[:3, :3], B[:3, :3]]))(t).as_matrix()
+            T[:3, 3] = (1 - t) * A[:3, 3] + t * B[:3, 3]
+            poses.append(T)
+        out.append(poses)
+    return out
+
+
+def push_plan_poses(
+    part: MovablePart,
+    switch: float,
+    tilt: float,
+    depth: float = PUSH_DEPTH,
+    standoff: float = 0.12,
+) -> tuple[list, np.ndarray]:
+    """Candidate tcp poses (object frame), step by step, of the pull-then-push plan:
+    the grasp from closed to ``switch`` of the range, then :func:`push_steps`; and the
+    part's open fraction at each step. For :meth:`PandaReach.follow`."""
+    pulled_f = np.linspace(0.0, switch, 4)
+    steps, fractions = push_steps(part, switch, tilt, depth, standoff)
+    return grasp_poses(part, pulled_f) + steps[1:], np.concatenate([pulled_f, fractions[1:]])
+
+
+def push_steps(
+    part: MovablePart,
+    fraction: float,
+    tilt: float,
+    depth: float = PUSH_DEPTH,
+    standoff: float = 0.12,
+) -> tuple[list, np.ndarray]:
+    """Candidate tcp poses (object frame), step by step, of a push from ``fraction``
+    of the range: the grasp there, backing ``standoff`` out of the face, round the
+    free edge (:func:`push_waypoints_link`, tilt ``tilt``) and pushing the inner face
+    on to ``PUSH_END`` of the range; and the part's open fraction at each step."""
+    held = grasp_poses(part, np.array([fraction]))[0]
+    steps = [held]
+    back = []
+    for T in held:
+        B = T.copy()
+        B[:3, 3] -= T[:3, 2] * standoff
+        back.append(B)
+    steps += _interpolate(held, back, 2)
+    L = link_pose(part, fraction)
+    prev = back
+    for _, poses in push_waypoints_link(part, tilt, depth):
+        cur = [L @ T for T in poses]
+        steps += _interpolate(prev, cur, 3)
+        prev = cur
+    press = push_waypoints_link(part, tilt, depth)[-1][1]
+    pushed_f = np.linspace(fraction, max(PUSH_END, fraction), 6)[1:]
+    steps += [[link_pose(part, f) @ T for T in press] for f in pushed_f]
+    fractions = np.concatenate([np.full(len(steps) - len(pushed_f), fraction), pushed_f])
+    return steps, fractions
+
+
+def _swept_points(part: MovablePart, bounds: tuple | None = None, end: float = 1.0) -> np.ndarray:
+    """(M, 3) points of the volume a door sweeps (up to ``end`` of its range): hinge-to-
+    handle segments along the path.
 
     With the object's ``bounds``, a door on a horizontal hinge (bottom-hinged, a lid)
     also spans the object's extent along its hinge: it comes down over its full width,
     onto a robot standing beside the handle.
     """
     origin = np.asarray(part.origin, dtype=float)
-    path = handle_path(part, np.linspace(0.0, 1.0, 12))
+    path = handle_path(part, np.linspace(0.0, end, 12))
     s = np.linspace(0.0, 1.15, 8)[:, None, None]
     pts = (origin + s * (path - origin)[None]).reshape(-1, 3)
     axis = np.asarray(part.axis, dtype=float)
@@ -245,16 +393,18 @@ class PandaReach:
         grasps: list,
         standoff: float = 0.12,
         clear: Any = None,
+        q0: np.ndarray | None = None,
     ) -> tuple[float, np.ndarray | None]:
         """``clear(k, points)``: optional check that the arm's points (object frame) at
         grasp ``k`` keep off the door and the object; grasps where they do not count in
-        ``self.last_hits`` (a fraction of the grasps), clear solutions are preferred."""
+        ``self.last_hits`` (a fraction of the grasps), clear solutions are preferred.
+        ``q0``: the joints to start from (default: the ready pose)."""
         c, s = np.cos(yaw), np.sin(yaw)
         to_root = np.eye(4)
         to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
         to_root[:3, 3] = -to_root[:3, :3] @ base
         from_root = np.linalg.inv(to_root)
-        q = self.ready.copy()
+        q = self.ready.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
         reached, start, hits = 0, None, 0
         for k, poses in enumerate(grasps):
             best = None
@@ -289,6 +439,132 @@ class PandaReach:
         return reached / len(grasps), start
 
 
+def _candidate_bases(
+    part: MovablePart,
+    bounds: tuple,
+    path: np.ndarray,
+    approach: np.ndarray,
+    swept_end: float = 1.0,
+    high: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grid of bases (C, 3) in the object frame, their yaws (C,) toward the middle of
+    ``path`` and heuristic costs (C,; inf: the base column hits the object or the door
+    swept up to ``swept_end`` of its range): ``path`` points (K, 3) within comfortable
+    reach of the shoulder, the gripper, pointing along ``approach`` (K, 3) at each,
+    reaching away from the body. ``high``: also bases up to 0.8 m above the path,
+    standing over the volume the door sweeps (a bottom-hinged door or a lid comes down
+    in front of the object, under them)."""
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    swept = _swept_points(part, bounds, swept_end)
+    centre = path.mean(axis=0)
+    xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
+    ys = np.arange(lo[1] - 1.0, hi[1] + 1.0, 0.05)
+    zs = centre[2] - SHOULDER_HEIGHT + np.arange(-0.4, 0.81 if high else 0.41, 0.1)
+    X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
+    base = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)  # (C, 3)
+    shoulder = base + np.array([0.0, 0.0, SHOULDER_HEIGHT])
+    d = path[None] - shoulder[:, None]  # (C, K, 3)
+    dist = np.linalg.norm(d, axis=2)
+    dh = np.linalg.norm(d[..., :2], axis=2)
+    cost = (np.maximum(dist - REACH[1], 0) ** 2 + np.maximum(REACH[0] - dist, 0) ** 2).sum(1)
+    cost += (np.maximum(0.3 - dh, 0) ** 2).sum(1)
+    # the gripper reaches away from the body more easily than back toward it
+    u = d[..., :2] / np.maximum(dh[..., None], 1e-6)
+    facing = (approach[None, :, :2] * u).sum(2)
+    cost += 0.3 * (np.maximum(0.3 - facing, 0) ** 2).sum(1)
+    # prefer standing near the middle of the comfortable range
+    cost += 0.01 * ((dist - 0.55) ** 2).sum(1)
+    # the base column must stay clear of the object and of the swept volume
+    clear_obj = _box_distance_xy(base[:, :2], lo[:2], hi[:2])
+    bad = clear_obj < BASE_CLEARANCE
+    # (the arm rises above its base: any height of the swept volume counts; ``high``:
+    # only the swept volume above the base's bottom, under a robot standing high)
+    near = np.linalg.norm(swept[None, :, :2] - base[:, None, :2], axis=2) < BASE_CLEARANCE
+    if high:
+        near &= swept[None, :, 2] > base[:, None, 2] - 0.05
+    bad |= near.any(1)
+    # the ready gripper must not start inside the object
+    yaw = np.arctan2(centre[1] - base[:, 1], centre[0] - base[:, 0])
+    tcp = base + np.stack(
+        [np.cos(yaw) * READY_TCP[0], np.sin(yaw) * READY_TCP[0], np.full_like(yaw, READY_TCP[2])],
+        axis=1,
+    )
+    inside = (tcp > lo - 0.08).all(1) & (tcp < hi + 0.08).all(1)
+    cost += np.where(inside, 1.0, 0.0)
+    return base, yaw, np.where(bad, np.inf, cost)
+
+
+def _shortlist(cost: np.ndarray, n_checked: tuple[int, int]) -> list[int]:
+    """The ``n_checked[0]`` cheapest finite candidates and ``n_checked[1]`` others (seeded)."""
+    ranked = [int(i) for i in np.argsort(cost) if np.isfinite(cost[i])]
+    rng = np.random.default_rng(0)
+    rest = ranked[n_checked[0] :]
+    extra = rng.choice(rest, size=min(n_checked[1], len(rest)), replace=False) if rest else []
+    return ranked[: n_checked[0]] + [int(i) for i in extra]
+
+
+def push_plan_points(part: MovablePart, switch: float) -> tuple[np.ndarray, np.ndarray]:
+    """(K, 3) object-frame points the tcp visits in a pull-then-push plan switching at
+    ``switch`` (the handle up to it, then the pressing point on to ``PUSH_END``) and
+    (K, 3) the directions the gripper points there (a slanted pusher's for the push)."""
+    grasp_f = np.linspace(0.0, switch, 4)
+    push_f = np.linspace(switch, PUSH_END, 6)
+    a, r, n, _ = hinge_frame_link(part)
+    press = push_point_link(part, PUSH_RADIUS, PUSH_DEPTH)
+    slant = (n - r) / np.sqrt(2.0)
+    points = [link_pose(part, f)[:3] @ np.append(press, 1.0) for f in push_f]
+    dirs = [link_pose(part, f)[:3, :3] @ slant for f in push_f]
+    return (
+        np.concatenate([handle_path(part, grasp_f), np.asarray(points)]),
+        np.concatenate([-opening_normals(part, grasp_f), np.asarray(dirs)]),
+    )
+
+
+def grasp_score(
+    reach: PandaReach,
+    part: MovablePart,
+    bounds: tuple,
+    base: np.ndarray,
+    yaw: float,
+    standoff: float = 0.12,
+    q0: np.ndarray | None = None,
+    start: float = 0.0,
+) -> tuple[float, float, np.ndarray | None]:
+    """How well a robot at ``base``, ``yaw`` (object frame) follows the grasped handle
+    from ``start`` of the range to the end of ``FOLLOW_FRACTIONS``: (the score: the
+    fraction of the path followed less half the fraction where the arm is in the door's
+    way, which knocks it back or jams as badly as half the path; the fraction followed;
+    the pre-grasp joints)."""
+    fractions = np.linspace(start, FOLLOW_FRACTIONS[-1], len(FOLLOW_FRACTIONS))
+    clear = _arm_clearance(part, bounds, fractions)
+    frac, q = reach.follow(base, yaw, grasp_poses(part, fractions), standoff, clear, q0=q0)
+    return frac - 0.5 * reach.last_hits, frac, q
+
+
+def best_push_plan(
+    reach: PandaReach,
+    part: MovablePart,
+    base: np.ndarray,
+    yaw: float,
+    standoff: float = 0.12,
+    q0: np.ndarray | None = None,
+    depth: float = PUSH_DEPTH,
+) -> tuple[float, float, float, np.ndarray | None]:
+    """The best pull-then-push plan (:func:`push_plan_poses`) for a robot at ``base``,
+    ``yaw`` (object frame): (the fraction of its steps the arm follows, the switch
+    fraction, the tilt, the pre-grasp joints), over ``PUSH_SWITCHES`` x ``PUSH_TILTS``."""
+    best = (-1.0, PUSH_SWITCHES[0], PUSH_TILTS[0], None)
+    for switch in PUSH_SWITCHES:
+        for tilt in PUSH_TILTS:
+            steps, _ = push_plan_poses(part, switch, tilt, depth, standoff)
+            frac, q = reach.follow(base, yaw, steps, standoff, q0=q0)
+            if frac > best[0]:
+                best = (frac, switch, tilt, q)
+            if frac == 1.0:
+                return best
+    return best
+
+
 def robot_base_for_part(
     part: MovablePart,
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]],
@@ -303,70 +579,49 @@ def robot_base_for_part(
     the handle. Revolute parts: grid search (see the module docstring); with ``reach``
     the ``n_checked[0]`` best candidates and ``n_checked[1]`` others drawn at random
     (seeded) are ranked by inverse kinematics along the grasped path, and the arm
-    starts at the pre-grasp ``standoff`` in front of the handle.
+    starts at the pre-grasp ``standoff`` in front of the handle. When no base lets the
+    grasp follow the whole path (a wide fridge door swings its handle round a metre-wide
+    arc), bases are also ranked for pulling part of the way and pushing the door's inner
+    face on from there (:func:`best_push_plan`; the solver switches the same way).
     """
     if part.joint_type == "prismatic":
         handle = np.asarray(part.handle_object, dtype=float)
         base = handle + np.array([standoff + READY_TCP[0], 0.0, -READY_TCP[2]])
         return base, float(np.pi), None
-    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    grasp_f = PATH_FRACTIONS
-    path = handle_path(part, grasp_f)  # (K, 3)
-    approach = -opening_normals(part, grasp_f)  # (K, 3) gripper pointing into the face
-    swept = _swept_points(part, bounds)
-    centre = path.mean(axis=0)
-    xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
-    ys = np.arange(lo[1] - 1.0, hi[1] + 1.0, 0.05)
-    zs = centre[2] - SHOULDER_HEIGHT + np.arange(-0.4, 0.41, 0.1)
-    X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
-    base = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)  # (C, 3)
-    shoulder = base + np.array([0.0, 0.0, SHOULDER_HEIGHT])
-    d = path[None] - shoulder[:, None]  # (C, K, 3)
-    dist = np.linalg.norm(d, axis=2)
-    dh = np.linalg.norm(d[..., :2], axis=2)
-    cost = (np.maximum(dist - REACH[1], 0) ** 2 + np.maximum(REACH[0] - dist, 0) ** 2).sum(1)
-    cost += (np.maximum(0.3 - dh, 0) ** 2).sum(1)
-    # the gripper reaches away from the body more easily than back toward it
-    g = len(grasp_f)
-    u = d[:, :g, :2] / np.maximum(dh[:, :g, None], 1e-6)
-    facing = (approach[None, :, :2] * u).sum(2)
-    cost += 0.3 * (np.maximum(0.3 - facing, 0) ** 2).sum(1)
-    # prefer standing near the middle of the comfortable range
-    cost += 0.01 * ((dist - 0.55) ** 2).sum(1)
-    # the base column must stay clear of the object and of the swept volume
-    clear_obj = _box_distance_xy(base[:, :2], lo[:2], hi[:2])
-    bad = clear_obj < BASE_CLEARANCE
-    # (the arm rises above its base: any height of the swept volume counts)
-    near = np.linalg.norm(swept[None, :, :2] - base[:, None, :2], axis=2) < BASE_CLEARANCE
-    bad |= near.any(1)
-    # the ready gripper must not start inside the object
-    yaw = np.arctan2(centre[1] - base[:, 1], centre[0] - base[:, 0])
-    tcp = base + np.stack(
-        [np.cos(yaw) * READY_TCP[0], np.sin(yaw) * READY_TCP[0], np.full_like(yaw, READY_TCP[2])],
-        axis=1,
-    )
-    inside = (tcp > lo - 0.08).all(1) & (tcp < hi + 0.08).all(1)
-    cost += np.where(inside, 1.0, 0.0)
-    cost = np.where(bad, np.inf, cost)
+    hi = np.asarray(bounds[1], dtype=float)
+    path = handle_path(part, PATH_FRACTIONS)  # (K, 3)
+    approach = -opening_normals(part, PATH_FRACTIONS)
+    base, yaw, cost = _candidate_bases(part, bounds, path, approach)
     best = int(np.argmin(cost))
     if not np.isfinite(cost[best]):  # nothing clear: fall back to the front
+        centre = path.mean(axis=0)
         return np.array([hi[0] + 0.8, centre[1], centre[2] - 0.6]), float(np.pi), None
     if reach is None:
         return base[best], float(yaw[best]), None
     # the heuristic's best few and some others, ranked by how far along the path the
     # grasp stays kinematically feasible (inverse kinematics, seeded step by step)
-    ranked = [int(i) for i in np.argsort(cost) if np.isfinite(cost[i])]
-    rng = np.random.default_rng(0)
-    rest = ranked[n_checked[0] :]
-    extra = rng.choice(rest, size=min(n_checked[1], len(rest)), replace=False) if rest else []
-    order = ranked[: n_checked[0]] + [int(i) for i in extra]
-    grasps = grasp_poses(part)
-    clear = _arm_clearance(part, bounds, FOLLOW_FRACTIONS)
-    best_score, pick, start = -np.inf, best, None
-    for i in order:
-        frac, q = reach.follow(base[i], float(yaw[i]), grasps, standoff, clear)
-        # the arm's elbow in the door's way knocks it back or jams: as bad as half the path
-        score = frac - 0.5 * reach.last_hits - 0.01 * cost[i]
-        if score > best_score:
-            best_score, pick, start = score, i, q
-    return base[pick], float(yaw[pick]), start
+    best_score, picked, full = -np.inf, (base[best], float(yaw[best]), None), False
+    axis = np.asarray(part.axis, dtype=float)
+    for high in (False, True):
+        if high:  # a door on a horizontal hinge out of reach: try standing over it
+            if best_score > 0.0 or abs(axis[2]) > 0.7 * np.linalg.norm(axis):
+                break
+            base, yaw, cost = _candidate_bases(part, bounds, path, approach, high=True)
+        for i in _shortlist(cost, n_checked):
+            score, _, q = grasp_score(reach, part, bounds, base[i], float(yaw[i]), standoff)
+            if score - 0.01 * cost[i] > best_score:
+                best_score, picked = score - 0.01 * cost[i], (base[i], float(yaw[i]), q)
+                full = score == 1.0
+    if full:
+        return picked
+    # pull part of the way, then push: bases for that plan, ranked the same way
+    for switch in PUSH_SWITCHES:
+        pts, dirs = push_plan_points(part, switch)
+        # (the push stops short of the door's stop: a robot may stand beyond that)
+        base, yaw, cost = _candidate_bases(part, bounds, pts, dirs, PUSH_END)
+        for i in _shortlist(cost, (n_checked[0] // 2, n_checked[1] // 2)):
+            frac, _, _, q = best_push_plan(reach, part, base[i], float(yaw[i]), standoff)
+            score = frac - PUSH_MARGIN - 0.01 * cost[i]
+            if score > best_score:
+                best_score, picked = score, (base[i], float(yaw[i]), q)
+    return picked

@@ -23,8 +23,14 @@ opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.plac
 4b. when the pull stalls short of the goal: a bottom-hinged door whose weight now
    opens it is let go to fall to its stop; another door at least ``push_min_angle``
    ajar is pushed from inside (the closed fingers go round its free edge and press
-   on its inner face along the hinge circle; if going round the edge knocks the
-   part back by ``push_max_loss``, the push is abandoned);
+   on its inner face along the hinge circle, as a paddle along the face or poking
+   it, whichever the arm's kinematics follow further; if going round the edge knocks
+   the part back by ``push_max_loss``, the push is abandoned). A door whose handle
+   the arm cannot follow round its whole arc (a wide fridge door) but can push on
+   from part of the way is pulled only that far, then pushed: before pulling, the
+   plan (switch fraction, pusher orientation) is chosen by inverse kinematics from
+   the robot's actual pose (:func:`tasks.placement.best_push_plan`, which the
+   placement also ranks bases by);
 5. hold still until the success flag holds (the part must be nearly still); a part
    that stalls already past the goal fraction is held there (a lid let go falls shut).
 
@@ -57,7 +63,17 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sim_envs.catalog import AssetRecord, ListSource, open_source
-from tasks.placement import PUSH_RADIUS, hinge_frame_link, push_point_link
+from tasks.placement import (
+    PUSH_MARGIN,
+    PUSH_TILTS,
+    READY_TCP,
+    PandaReach,
+    best_push_plan,
+    grasp_score,
+    hinge_frame_link,
+    push_steps,
+    push_waypoints_link,
+)
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +104,7 @@ class SolverConfig:
     push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
+    push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
@@ -167,6 +184,7 @@ class ScriptedSolver:
         self.cfg = config or SolverConfig()
         self._ik_failed = False  # the last step's inverse kinematics failed at every scale
         self._phase = ""
+        self._reach: PandaReach | None = None  # the arm's kinematics, for planning a push
 
     # ---- state
     def _tcp(self) -> np.ndarray:
@@ -268,11 +286,6 @@ class ScriptedSolver:
         )
         return dp < 2e-4 and dr < 2e-3
 
-    def _carried(self, point_link: np.ndarray) -> np.ndarray:
-        """World position of a point fixed in the target link's frame."""
-        L = self._link()
-        return L[:3, :3] @ point_link + L[:3, 3]
-
     def _retreat(self, back: float) -> np.ndarray:
         """Tcp goal ``back`` metres out of the face it holds, a little up and drawn back
         toward the robot's base (a falling door comes down toward the hand; a stretched
@@ -286,42 +299,60 @@ class ScriptedSolver:
         goal[:3, 3] = p - goal[:3, 2] * back + pull + np.array([0.0, 0.0, 0.05])
         return goal
 
-    def _go(self, goal_fn, gripper: float, do, tol: float = 0.02, budget: int = 30) -> bool:
-        """Step toward ``goal_fn()`` (a (4, 4) pose, re-evaluated every step) until within ``tol``."""
+    def _go(
+        self, goal_fn, gripper: float, do, tol: float = 0.02, budget: int = 30, rot_tol: float = 9.0
+    ) -> bool:
+        """Step toward ``goal_fn()`` (a (4, 4) pose, re-evaluated every step) until within
+        ``tol`` (m) and ``rot_tol`` (rad)."""
         for _ in range(budget):
             goal = goal_fn()
-            if np.linalg.norm(goal[:3, 3] - self._tcp()[:3, 3]) < tol:
+            dp, dr = self._errors(goal)
+            if dp < tol and dr < rot_tol:
                 return True
             do(self._action(goal, gripper))
         return False
 
-    def _push_open(self, part: Any, target: float, axis: np.ndarray, do, frac) -> None:
-        """Let go of the handle, go round the free edge and push the inner face open."""
+    def _push_open(
+        self, part: Any, target: float, axis: np.ndarray, do, frac, tilt: float = 0.0
+    ) -> None:
+        """Let go of the handle, go round the free edge and push the inner face open
+        (the pusher tilted by ``tilt``, see :func:`tasks.placement.push_waypoints_link`)."""
         cfg = self.cfg
-        _, radial_l, normal_l, radius = hinge_frame_link(part)
+        _, radial_l, normal_l, _ = hinge_frame_link(part)
+        depth = self._inner_face_depth(normal_l)
+        edge = self._part_extent(radial_l)
+        waypoints = push_waypoints_link(
+            part, tilt, depth, cfg.push_clearance, cfg.push_edge_clearance, edge
+        )
+
+        def nearest(poses: list) -> np.ndarray:
+            """Of a waypoint's finger orientations, the one nearest the hand's now."""
+            L, R = self._link(), self._tcp()[:3, :3]
+            return min(poses, key=lambda T: -np.trace((L[:3, :3] @ T[:3, :3]).T @ R))
+
         # 1. open and back off along the face normal
-        R0 = self._tcp()[:3, :3]
-
-        def pose(p: np.ndarray, R: np.ndarray) -> np.ndarray:
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = R, p
-            return T
-
-        T = self._tcp()
-        out = T[:3, 3] - T[:3, 2] * 0.12
+        back = self._tcp()
+        back[:3, 3] -= back[:3, 2] * 0.12
         self._phase = "push:back"
-        self._go(lambda: pose(out, R0), GRIPPER_OPEN, do, budget=15)
-        # 2. the fingers point from beyond the free edge toward the hinge, closing along
-        # the axis (a flat paddle against the inner face)
-        edge = 1.0 + cfg.push_edge_clearance / radius
-        L = self._link()
-        z = -(L[:3, :3] @ radial_l)
-        y = L[:3, :3] @ np.cross(normal_l, radial_l)
-        Rp = np.stack([np.cross(y, z), y, z], axis=1)
+        self._go(lambda: back, GRIPPER_OPEN, do, budget=15)
+        # 2. turn the closed fingers to the pushing orientation there
+        turned = back.copy()
+        turned[:3, :3] = (self._link() @ nearest(waypoints[0][1]))[:3, :3]
         self._phase = "push:turn"
-        for _ in range(15):
-            do(self._action(pose(out, Rp), GRIPPER_CLOSED))
-        depth = self._inner_face_depth(normal_l) + cfg.push_clearance
+        self._go(lambda: turned, GRIPPER_CLOSED, do, budget=15, rot_tol=0.1)
+        log.debug("push: tilt %.2f, turned to %.2f rad off", tilt, self._errors(turned)[1])
+        backed_off = self._errors(back)[0] < 0.04
+        if backed_off and self._errors(turned)[1] > cfg.push_turn_tol:
+            # the arm, stretched along the pulled handle, cannot turn the hand there (a
+            # joint at its limit): turn it at the ready pose's tcp, where the arm is most
+            # dexterous, on its way round (the hand is then the wrong way round in front
+            # of the door, its 0.2 m width sweeping the free edge shut); not while the
+            # hand is still at the handle (it would drag the door along)
+            self._phase = "push:home"
+            home = turned.copy()
+            home[:3, 3] = self._base()[:3, :3] @ READY_TCP + self._base()[:3, 3]
+            self._go(lambda: home, GRIPPER_CLOSED, do, tol=0.03, budget=40, rot_tol=0.1)
+            log.debug("push: turned at home to %.2f rad off", self._errors(home)[1])
         start = frac()
 
         def guarded(action: np.ndarray) -> None:
@@ -329,17 +360,12 @@ class ScriptedSolver:
             if frac() < start - cfg.push_max_loss:
                 raise _PushAborted
 
+        # 3. round the free edge, behind the inner face and along it to the pressing point
         try:
-            for name, rad, dep in (
-                ("push:edge", edge, -0.1),
-                ("push:behind", edge, depth),
-                ("push:slide", PUSH_RADIUS, depth),
-            ):
-                self._phase = name
-                pt = push_point_link(part, rad, dep)
-                self._go(
-                    lambda pt=pt: pose(self._carried(pt), Rp), GRIPPER_CLOSED, guarded, budget=25
-                )
+            for name, poses in waypoints:
+                self._phase = f"push:{name}"
+                T = nearest(poses)
+                self._go(lambda T=T: self._link() @ T, GRIPPER_CLOSED, guarded, budget=25)
         except _PushAborted:
             # going round the free edge swept the part shut: back off, keep what is left
             log.debug("push approach closed the part (%.3f -> %.3f); aborting", start, frac())
@@ -350,8 +376,8 @@ class ScriptedSolver:
                 do(self._action(away, GRIPPER_CLOSED))
             return
         self._phase = "push"
-        # 3. push: the pressing point carried a little further along the hinge circle
-        inner = push_point_link(part, PUSH_RADIUS, depth)
+        # 4. push: the pressing pose carried a little further along the hinge circle
+        press = nearest(waypoints[-1][1])
         history: list[float] = []
         while True:
             f = frac()
@@ -362,11 +388,62 @@ class ScriptedSolver:
                 break
             L = self._link()
             dq = min(cfg.revolute_speed, (target - f) * part.range + 0.01)
-            p = (joint_motion("revolute", axis, L[:3, 3], dq) @ L @ np.append(inner, 1.0))[:3]
-            do(self._action(pose(p, Rp), GRIPPER_CLOSED))
+            do(
+                self._action(
+                    joint_motion("revolute", axis, L[:3, 3], dq) @ L @ press, GRIPPER_CLOSED
+                )
+            )
+
+    def _reach_model(self) -> tuple[PandaReach, np.ndarray, float, np.ndarray]:
+        """The arm's kinematics (for planning), the robot base's position and yaw in the
+        object frame and the arm's joints now."""
+        from tasks.articulated import READY_QPOS
+
+        if self._reach is None:
+            robot = self.u.agent.robot._objs[0]
+            self._reach = PandaReach(robot, self.u.agent.ee_link_name, READY_QPOS)
+        obj = _pose_matrix(_np(self.u.object.pose.raw_pose)[0])
+        base = np.linalg.inv(obj) @ self._base()
+        yaw = float(np.arctan2(base[1, 0], base[0, 0]))
+        return self._reach, base[:3, 3], yaw, _np(self.u.agent.robot.get_qpos())[0]
+
+    def _plan_push(self, part: Any, fraction: float, depth: float) -> tuple[float | None, float]:
+        """Whether to stop pulling at some fraction and push from there: (the switch
+        fraction or None: pull all the way, the pusher's tilt).
+
+        From the arm's joints now, the grasp's path and the pull-then-push plans
+        (:func:`tasks.placement.best_push_plan`) are followed by inverse kinematics;
+        a push is planned only when it scores ``PUSH_MARGIN`` better than the grasp
+        (as in the placement, which chose the robot's base for one or the other)."""
+        reach, base, yaw, q = self._reach_model()
+        bounds = self.u.episode_assets[0].bounds
+        pulled, _, _ = grasp_score(reach, part, bounds, base, yaw, q0=q, start=fraction)
+        if pulled == 1.0:
+            return None, 0.0
+        pushed, switch, tilt, _ = best_push_plan(reach, part, base, yaw, q0=q, depth=depth)
+        log.debug("plan: pull %.2f, push plan %.2f (switch %.2f)", pulled, pushed, switch)
+        if pushed - PUSH_MARGIN <= pulled:
+            return None, 0.0
+        return switch, tilt
+
+    def _push_tilt(self, part: Any, fraction: float, depth: float) -> float:
+        """The pusher's tilt whose push from ``fraction`` the arm follows furthest."""
+        reach, base, yaw, q = self._reach_model()
+        best, tilt = -1.0, 0.0
+        for t in PUSH_TILTS:
+            steps, _ = push_steps(part, fraction, t, depth)
+            got, _ = reach.follow(base, yaw, steps, q0=q)
+            if got > best:
+                best, tilt = got, t
+        return tilt
 
     def _inner_face_depth(self, normal_link: np.ndarray) -> float:
         """How far (m) the target part's collision shapes reach behind its hinge plane."""
+        return self._part_extent(-normal_link)
+
+    def _part_extent(self, direction_link: np.ndarray) -> float:
+        """How far (m, >= 0) the target part's collision shapes reach from its link
+        origin along ``direction_link`` (e.g. the radial: the free edge's distance)."""
         depth = 0.0
         for shape in self.u.target_link._objs[0].get_collision_shapes():
             verts = getattr(shape, "vertices", None)
@@ -376,7 +453,7 @@ class ScriptedSolver:
             R = Rotation.from_quat(np.roll(np.asarray(pose.q, dtype=float), -1)).as_matrix()
             v = np.asarray(verts, dtype=float) * np.asarray(shape.scale, dtype=float)
             v = v @ R.T + np.asarray(pose.p, dtype=float)
-            depth = max(depth, float(-(v @ normal_link).min()))
+            depth = max(depth, float((v @ direction_link).max()))
         return depth
 
     def _gravity_torque(self) -> float:
@@ -492,13 +569,21 @@ class ScriptedSolver:
         if part.joint_type == "revolute":  # the handle no faster than a drawer's
             speed = min(cfg.revolute_speed, cfg.handle_speed / max(hinge_frame_link(part)[3], 0.05))
         axis_obj = _np(u.joint_axis_world())[0].astype(float)
+        # a door whose handle the arm cannot follow all the way but can push on from
+        # part of the way (a wide fridge door): pull only that far, then push
+        switch, tilt = None, 0.0
+        pushable = not closing and part.joint_type == "revolute"
+        if pushable:
+            face_depth = self._inner_face_depth(hinge_frame_link(part)[2])
+            switch, tilt = self._plan_push(part, frac(), face_depth)
+        pull_to = target if switch is None else min(target, switch)
         phase = self._phase = "move"
         history: list[float] = []
         follow_rotation = True
         last_tcp = self._tcp()
         while step < cfg.max_steps - cfg.hold_steps:
             f = frac()
-            if (f <= target) if closing else (f >= target):
+            if (f <= target) if closing else (f >= pull_to):
                 break
             history.append(f)
             tcp = self._tcp()
@@ -526,7 +611,7 @@ class ScriptedSolver:
         # inside (the gripper goes round its free edge and presses on its inner face)
         g_final = g_hold
         short = frac() < u.open_goal + cfg.goal_margin  # past the goal: just hold on
-        if not closing and part.joint_type == "revolute" and short:
+        if pushable and short:
             if frac() >= cfg.release_fraction and self._gravity_torque() > 0.5:
                 phase = self._phase = "release"
                 g_final = GRIPPER_OPEN
@@ -538,7 +623,9 @@ class ScriptedSolver:
             elif frac() * part.range >= cfg.push_min_angle:
                 phase = self._phase = "push"
                 g_final = GRIPPER_CLOSED
-                self._push_open(part, target, axis_obj, do, frac)
+                if switch is None or frac() < switch - 0.1:  # stalled before the plan's switch
+                    tilt = self._push_tilt(part, frac(), face_depth)
+                self._push_open(part, target, axis_obj, do, frac, tilt)
         # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
         phase = self._phase = "hold"
         hold = self._tcp()

@@ -17,6 +17,7 @@ The policy is saved as ``out_dir/policy.zip``.
 from __future__ import annotations
 
 import csv
+import gc
 import json
 import logging
 import time
@@ -136,6 +137,26 @@ class SuccessInfo(gym.Wrapper):
         return obs, float(r), bool(term), bool(trunc), info
 
 
+_GC_FROZEN = False
+
+
+def freeze_gc() -> None:
+    """Once per process: collect, then move every object alive (imports, torch, the
+    first scene) out of the cyclic garbage collector's sight (``gc.freeze``).
+
+    ManiSkill calls ``gc.collect()`` at every reconfiguration (to free GPU memory); in a
+    CPU process holding torch that full collection took 0.2-0.3 s of a 0.3 s asset
+    reload, and reloads happen every few episodes. After the freeze a reload took
+    0.03 s, and the resident memory stayed flat over 150 reloads (objects created
+    later, the later scenes among them, are collected as before).
+    """
+    global _GC_FROZEN
+    if not _GC_FROZEN:
+        gc.collect()
+        gc.freeze()
+        _GC_FROZEN = True
+
+
 def make_cpu_env(
     env_id: str,
     assets: str,
@@ -145,7 +166,8 @@ def make_cpu_env(
     **kwargs: Any,
 ) -> gym.Env:
     """One ManiSkill env on physx_cpu as a plain gymnasium env with numpy observations
-    (``ignore_terminations``: episodes end only at the time limit, not at success)."""
+    (``ignore_terminations``: episodes end only at the time limit, not at success).
+    Freezes the process's garbage collector once the env exists (:func:`freeze_gc`)."""
     from mani_skill.utils.wrappers import CPUGymWrapper
 
     import tasks  # noqa: F401  (registers the envs)
@@ -160,6 +182,7 @@ def make_cpu_env(
     env = CPUGymWrapper(env, ignore_terminations=ignore_terminations)
     env = SuccessInfo(FlattenStateObs(env))
     env.action_space.seed(seed)
+    freeze_gc()
     return env
 
 

@@ -1,0 +1,88 @@
+"""The scripted solver on wide doors: pull part of the way, then push the inner face."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import tasks  # noqa: F401  (registers the envs)
+
+# a fridge whose 0.62 m wide door swings its handle further than the Panda can follow
+WIDE_FRIDGE = ("refrigerator", 201, "door_0")
+
+
+@pytest.fixture(scope="module")
+def wide_fridge(tmp_path_factory: pytest.TempPathFactory):
+    from asset_pipeline.build import build_asset
+    from generator.articulated import save_bundle
+    from generator.procedural import object_id, sample_object
+    from sim_envs import FolderSource
+
+    category, seed, _ = WIDE_FRIDGE
+    root = tmp_path_factory.mktemp("wide_fridge")
+    build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
+    return next(iter(FolderSource(root)))
+
+
+def test_push_waypoints_go_round_the_free_edge(wide_fridge) -> None:
+    """The pusher passes beyond the free edge, then presses behind the inner face, the
+    hand's width along the hinge; a pull-then-push plan ends pushing at PUSH_END."""
+    from tasks.placement import (
+        PUSH_END,
+        PUSH_RADIUS,
+        PUSH_TILTS,
+        hinge_frame_link,
+        link_pose,
+        push_plan_poses,
+        push_waypoints_link,
+    )
+
+    part = next(p for p in wide_fridge.parts if p.name == WIDE_FRIDGE[2])
+    a, r, n, radius = hinge_frame_link(part)
+    assert radius > 0.6  # the case the push is for
+    for tilt in PUSH_TILTS:
+        named = dict(push_waypoints_link(part, tilt, depth=0.04))
+        assert set(named) == {"edge", "behind", "press"}
+        for T in named["edge"] + named["behind"]:
+            assert T[:3, 3] @ r > radius  # beyond the free edge
+        assert all(T[:3, 3] @ n > 0 for T in named["edge"])  # in front of the face
+        for T in named["behind"] + named["press"]:
+            assert T[:3, 3] @ n < -0.04  # behind the inner face
+            assert abs(T[:3, 1] @ a) > 0.99  # fingers (hand width) along the hinge
+        for T in named["press"]:
+            assert T[:3, 3] @ r == pytest.approx(PUSH_RADIUS * radius)
+    steps, fractions = push_plan_poses(part, 0.35, PUSH_TILTS[-1])
+    assert len(steps) == len(fractions) and fractions[0] == 0.0 and fractions[-1] == PUSH_END
+    press = dict(push_waypoints_link(part, PUSH_TILTS[-1]))["press"][0]
+    assert np.allclose(steps[-1][0], link_pose(part, PUSH_END) @ press)
+
+
+@pytest.mark.slow
+def test_solver_pulls_then_pushes_a_wide_fridge_door(wide_fridge) -> None:
+    """The robot cannot follow the handle round the whole arc: it pulls the door ajar,
+    lets go and pushes the inner face on to the goal, in CPU simulation."""
+    import gymnasium as gym
+
+    from sim_envs.catalog import ListSource
+    from tasks.solver import ScriptedSolver, SolverConfig
+
+    torch.set_num_threads(1)
+    env = gym.make(
+        "OpenDoor-v0",
+        assets=ListSource([wide_fridge.path]),
+        target_part=WIDE_FRIDGE[2],
+        obs_mode="state",
+        control_mode="pd_ee_delta_pose",
+        sim_backend="physx_cpu",
+        render_backend="none",
+    )
+    try:
+        env.reset(seed=0)
+        solver = ScriptedSolver(env, SolverConfig(trace=True))
+        res = solver.solve()
+    finally:
+        env.close()
+    phases = [t["phase"] for t in solver.trace]
+    assert "push:press" in phases and "push:abort" not in phases, sorted(set(phases))
+    assert res.success, res
