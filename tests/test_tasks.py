@@ -257,3 +257,29 @@ def test_obs_norm_matches_vec_normalize():
     np.testing.assert_allclose(norm(obs), venv.normalize_obs(obs), rtol=1e-5)
     hand = np.clip((obs - venv.obs_rms.mean) / np.sqrt(venv.obs_rms.var + 1e-8), -10, 10)
     np.testing.assert_allclose(norm(obs), hand, rtol=1e-5)
+
+
+def test_freeze_gc_once_per_process_and_later_garbage_still_collected():
+    """The env processes' GC freeze (tasks.train.freeze_gc) happens once: objects made
+    afterwards are neither frozen by a second call nor kept from collection (each asset
+    reload's old scene must still be freed)."""
+    import gc
+    import weakref
+
+    from tasks.train import freeze_gc
+
+    freeze_gc()
+    frozen = gc.get_freeze_count()
+    assert frozen > 0
+
+    class Node:
+        pass
+
+    a, b = Node(), Node()
+    a.other, b.other = b, a  # a reference cycle: only the cyclic collector frees it
+    alive = weakref.ref(a)
+    freeze_gc()
+    assert gc.get_freeze_count() == frozen
+    del a, b
+    gc.collect()
+    assert alive() is None
