@@ -231,11 +231,12 @@ def push_steps(
     steps += _interpolate(held, back, 2)
     L = link_pose(part, fraction)
     prev = back
-    for _, poses in push_waypoints_link(part, tilt, depth):
+    waypoints = push_waypoints_link(part, tilt, depth)
+    for _, poses in waypoints:
         cur = [L @ T for T in poses]
         steps += _interpolate(prev, cur, 3)
         prev = cur
-    press = push_waypoints_link(part, tilt, depth)[-1][1]
+    press = waypoints[-1][1]
     pushed_f = np.linspace(fraction, max(PUSH_END, fraction), 6)[1:]
     steps += [[link_pose(part, f) @ T for T in press] for f in pushed_f]
     fractions = np.concatenate([np.full(len(steps) - len(pushed_f), fraction), pushed_f])
