@@ -62,6 +62,18 @@ def main() -> None:
     ap.add_argument("--num-envs", type=int, default=4)
     ap.add_argument("--vector", default="async", help="async (processes) or sync")
     ap.add_argument("--control-mode", default="pd_ee_delta_pos")
+    ap.add_argument(
+        "--near-start-prob",
+        type=float,
+        default=0.0,
+        help="fraction of training episodes starting with the fingers around the handle",
+    )
+    ap.add_argument(
+        "--log-std-init",
+        type=float,
+        default=None,
+        help="initial log std of the Gaussian policy (default: tasks.train.Args)",
+    )
     ap.add_argument("--eval-every", type=int, default=15_000)
     ap.add_argument("--eval-episodes", type=int, default=20)
     ap.add_argument(
@@ -74,6 +86,7 @@ def main() -> None:
     out = Path(a.out)
     train_dir = build_procedural(out / "assets" / "train", n=a.n_train, split="train")
     test_dir = build_procedural(out / "assets" / "test", n=a.n_test, split="test")
+    extra = {} if a.log_std_init is None else {"log_std_init": a.log_std_init}
     args = Args(
         env_id="OpenDrawer-v0",
         assets=str(train_dir),
@@ -81,11 +94,13 @@ def main() -> None:
         num_envs=a.num_envs,
         vector=a.vector,
         control_mode=a.control_mode,
+        near_start_prob=a.near_start_prob,
         total_timesteps=a.total_timesteps,
         max_minutes=a.minutes,
         eval_every=a.eval_every,
         eval_episodes=a.eval_episodes,
         out_dir=str(out / "ppo"),
+        **extra,
     )
     result = train(args)
     with open(result["eval_csv"]) as f:

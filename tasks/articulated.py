@@ -98,6 +98,7 @@ class ArticulatedPartEnv(BaseEnv):
         object_pos_noise: float = 0.03,
         object_yaw_noise: float = 0.1,
         robot_pos_noise: float = 0.02,
+        near_start_prob: float = 0.0,
         sim_options: SimOptions = DEFAULT_SIM_OPTIONS,
         reconfiguration_freq: int | None = None,
         num_envs: int = 1,
@@ -110,6 +111,9 @@ class ArticulatedPartEnv(BaseEnv):
         self.object_pos_noise = object_pos_noise
         self.object_yaw_noise = object_yaw_noise
         self.robot_pos_noise = robot_pos_noise
+        if near_start_prob > 0 and (self.joint_type != "prismatic" or self.closing):
+            raise ValueError("near_start_prob applies to the drawer opening task only")
+        self.near_start_prob = float(near_start_prob)
         self.sim_options = sim_options
         if reconfiguration_freq is None:
             reconfiguration_freq = 1 if num_envs == 1 else 0
@@ -337,11 +341,25 @@ class ArticulatedPartEnv(BaseEnv):
             base = base + (torch.rand((b, 3)) * 2 - 1) * self.robot_pos_noise
             robot_yaw = yaw + self._slot_base_yaw[env_idx, slot]
             robot_yaw = robot_yaw + (torch.rand(b) * 2 - 1) * 0.05
+            if self.near_start_prob > 0:
+                base = base + self._near_start_shift(robot_yaw)
             self.agent.robot.set_pose(Pose.create_from_pq(p=base, q=yaw_quat(robot_yaw)))
             rq = self._slot_qstart[env_idx, slot].clone()
             rq[:, :7] += torch.randn((b, 7)) * self.robot_init_qpos_noise
             self.agent.robot.set_qpos(rq)
             self.agent.robot.set_qvel(torch.zeros_like(rq))
+
+    def _near_start_shift(self, robot_yaw: torch.Tensor) -> torch.Tensor:
+        """(b, 3) base offsets for a training start-state curriculum: with probability
+        ``near_start_prob`` the robot starts moved forward along its heading (the ready
+        pose points the gripper along the base's +x) so that the open fingers are
+        from 2 cm in front of the handle centre to 1 cm past it (plus the pose noise) instead of ``handle_standoff``, i.e. around
+        the handle, where closing them grasps it; otherwise no offset."""
+        b = len(robot_yaw)
+        near = torch.rand(b) < self.near_start_prob
+        forward = self.handle_standoff - 0.02 + torch.rand(b) * 0.03
+        heading = torch.stack([torch.cos(robot_yaw), torch.sin(robot_yaw), torch.zeros(b)], 1)
+        return heading * (forward * near)[:, None]
 
     # ------------------------------------------------------------------ task
     def target_qpos(self) -> torch.Tensor:

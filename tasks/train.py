@@ -80,6 +80,19 @@ class Args:
     gae_lambda: float = 0.95
     ent_coef: float = 0.0
     log_std_init: float = -1.0
+    gripper_init: float | None = None
+    """initial mean of the gripper action (the last action dimension of every Panda
+    control mode), set through the policy's action-layer bias: ManiSkill maps -1..1 to
+    finger targets -0.01..0.04 m, so SB3's zero-mean start holds the fingers 3 cm apart,
+    too narrow to straddle a handle, and PPO then learns to hook handles with closed
+    fingers (which slip); +1 starts with the fingers open, but then PPO's noise almost
+    never closes them. None keeps SB3's zero init (measured: +1 was no better over 195k
+    steps)"""
+    near_start_prob: float = 0.0
+    """OpenDrawer-v0 only: fraction of training episodes that start with the open
+    fingers around the handle instead of 12 cm in front of it (a start-state
+    curriculum, ``ArticulatedPartEnv(near_start_prob=)``); evaluation always starts at
+    the task's standard pose"""
     normalize_obs: bool = True
     """running mean/std observation normalization (SB3 VecNormalize); the statistics are
     saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
@@ -201,6 +214,7 @@ def _env_fn(args: Args, rank: int):
             reconfiguration_freq=args.reconfiguration_freq,
             ignore_terminations=args.ignore_terminations,
             sim_config={"control_freq": args.control_freq},
+            **({"near_start_prob": args.near_start_prob} if args.near_start_prob > 0 else {}),
         )
 
     return thunk
@@ -305,6 +319,7 @@ def make_train_env(args: Args):
         reward_mode=args.reward_mode,
         max_episode_steps=args.max_episode_steps,
         reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
+        **({"near_start_prob": args.near_start_prob} if args.near_start_prob > 0 else {}),
     )
     return ManiSkillSB3VectorEnv(env)
 
@@ -446,6 +461,16 @@ def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
 # --------------------------------------------------------------------------- training
 
 
+def set_initial_action_mean(model: Any, index: int, value: float) -> None:
+    """Make an SB3 Gaussian policy's mean action ``value`` in dimension ``index`` at the
+    start: its action layer starts with near-zero weights (orthogonal, gain 0.01), so the
+    layer's bias is the initial mean."""
+    import torch
+
+    with torch.no_grad():
+        model.policy.action_net.bias[index] = float(value)
+
+
 def train(args: Args) -> dict[str, Any]:
     """Train PPO per ``args``; return paths and the last evaluation."""
     from stable_baselines3 import PPO
@@ -476,6 +501,8 @@ def train(args: Args) -> dict[str, Any]:
         policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
         verbose=0,
     )
+    if args.gripper_init is not None:
+        set_initial_action_mean(model, -1, args.gripper_init)
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     t0 = time.time()

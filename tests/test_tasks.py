@@ -283,3 +283,48 @@ def test_freeze_gc_once_per_process_and_later_garbage_still_collected():
     del a, b
     gc.collect()
     assert alive() is None
+
+
+def test_initial_action_mean_opens_the_gripper_without_changing_other_dimensions():
+    """``set_initial_action_mean`` makes a fresh SB3 policy's mean gripper action +1 (open
+    fingers) and leaves the other dimensions near SB3's zero-mean start."""
+    from types import SimpleNamespace
+
+    import torch
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    from tasks.train import set_initial_action_mean
+
+    torch.manual_seed(0)
+    actions = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)  # 3 position deltas + gripper
+    policy = ActorCriticPolicy(gym.spaces.Box(-5.0, 5.0, (6,), np.float32), actions, lambda _: 3e-4)
+    obs = torch.as_tensor(np.random.default_rng(0).normal(size=(64, 6)), dtype=torch.float32)
+    with torch.no_grad():
+        before = policy.get_distribution(obs).distribution.mean.numpy()
+        set_initial_action_mean(SimpleNamespace(policy=policy), -1, 1.0)
+        after = policy.get_distribution(obs).distribution.mean.numpy()
+    assert np.abs(before[:, -1]).max() < 0.05  # SB3's start: half-closed fingers
+    np.testing.assert_allclose(after[:, -1], 1.0, atol=0.05)
+    np.testing.assert_array_equal(after[:, :-1], before[:, :-1])
+
+
+def test_near_start_curriculum_puts_the_fingers_round_the_handle(procedural_assets: Path) -> None:
+    """``near_start_prob=1`` starts every drawer episode with the TCP a few cm from the
+    handle (about 12 cm without it); the option is refused for door and closing tasks."""
+
+    def reset_distances(prob: float) -> list[float]:
+        env = _make("OpenDrawer-v0", procedural_assets, near_start_prob=prob)
+        try:
+            dists = []
+            for seed in range(8):
+                env.reset(seed=seed)
+                dists.append(float(env.unwrapped.evaluate()["tcp_to_handle_dist"][0]))
+            return dists
+        finally:
+            env.close()
+
+    far, near = reset_distances(0.0), reset_distances(1.0)
+    assert min(far) > 0.08
+    assert max(near) < 0.08 and np.mean(near) < np.mean(far) - 0.06
+    with pytest.raises(ValueError, match="drawer opening"):
+        _make("OpenDoor-v0", procedural_assets, near_start_prob=0.5)
