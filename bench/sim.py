@@ -150,7 +150,9 @@ def main() -> None:
             k = a.reconfiguration_freqs[0]
             for p in a.procs:
                 results.append(
-                    measure_repeated(a.repeats, assets, "rgb", p, a.rgb_steps, a.control_modes[0], k)
+                    measure_repeated(
+                        a.repeats, assets, "rgb", p, a.rgb_steps, a.control_modes[0], k
+                    )
                 )
     print(
         json.dumps(
