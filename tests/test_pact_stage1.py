@@ -440,3 +440,23 @@ def test_tidy_parts_hand_computed_case():
     out, ex = tidy_parts(occ, exists)
     assert ex.tolist() == [True, False, False, True]
     assert out[3].sum() == 8 and out[0].sum() == 216
+
+
+def test_conditioning_init_options():
+    """By default the mask projection starts at zero (the image tokens are unchanged) and
+    E starts at 0.02 scale; ``zero_init_mask_proj=False`` with ``part_embed_std=1`` makes
+    the mask change the image tokens from the first step, at the image tokens' scale."""
+    from dataclasses import replace
+
+    torch.manual_seed(0)
+    cond = torch.randn(1, TINY_FLOW.cond_tokens, TINY_FLOW.cond_dim)
+    mask = torch.ones(1, 8, 8, dtype=torch.long)
+    mask[..., 4:] = 2
+    default = build("part_flow", TINY_FLOW)
+    assert torch.equal(default.context(cond, mask, None, None, 1), cond)
+    assert float(default.part_embed.std()) < 0.05
+    live = build("part_flow", replace(TINY_FLOW, part_embed_std=1.0, zero_init_mask_proj=False))
+    added = live.context(cond, mask, None, None, 1) - cond
+    assert 0.5 < float(live.part_embed.std()) < 1.5
+    assert float(added[:, TINY_FLOW.cond_prefix_tokens :].pow(2).mean().sqrt()) > 0.1
+    assert torch.equal(added[:, : TINY_FLOW.cond_prefix_tokens], torch.zeros_like(added[:, :1]))

@@ -62,6 +62,8 @@ class PartFlowConfig:
     cond_grid: int = 8  # image-token patch grid side (mask is pooled to it)
     cond_prefix_tokens: int = 1  # cls + register tokens before the patch tokens
     grad_checkpoint: bool = False
+    part_embed_std: float = 0.02  # initial scale of E (the latent inputs are unit-scale)
+    zero_init_mask_proj: bool = True  # mask projection starts at 0 (image tokens unchanged)
 
     @property
     def tokens_per_part(self) -> int:
@@ -121,8 +123,9 @@ class PartFlowTransformer(nn.Module):
         T, dp, D = cfg.max_parts, cfg.part_embed_dim, cfg.width
         patch_dim = cfg.latent_channels * cfg.patch_size**3
 
-        self.part_embed = nn.Parameter(torch.randn(T, dp) * 0.02)  # E, (T, d_p)
-        self.mask_extra = nn.Parameter(torch.randn(2, dp) * 0.02)  # rows: background, no mask
+        std = cfg.part_embed_std
+        self.part_embed = nn.Parameter(torch.randn(T, dp) * std)  # E, (T, d_p)
+        self.mask_extra = nn.Parameter(torch.randn(2, dp) * std)  # rows: background, no mask
         self.mask_proj = nn.Linear(dp, cfg.cond_dim)
         self.input_proj = nn.Linear(patch_dim + dp, D)
         grid = cfg.latent_resolution // cfg.patch_size
@@ -138,7 +141,10 @@ class PartFlowTransformer(nn.Module):
         self._init_weights()
 
     def _init_weights(self) -> None:
-        init_adaln_transformer(self, zero=(self.final_adaLN[-1], self.out_proj, self.mask_proj))
+        zero = (self.final_adaLN[-1], self.out_proj)
+        if self.cfg.zero_init_mask_proj:
+            zero = (*zero, self.mask_proj)
+        init_adaln_transformer(self, zero=zero)
 
     # --- shapes -----------------------------------------------------------------------
 
