@@ -123,7 +123,7 @@ def measure_repeated(repeats: int, *args) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--assets", default=None)
-    ap.add_argument("--steps", type=int, default=1000, help="vector steps per measurement")
+    ap.add_argument("--steps", type=int, default=2000, help="vector steps per measurement")
     ap.add_argument("--rgb-steps", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=3, help="runs per configuration (median)")
     ap.add_argument("--procs", type=int, nargs="+", default=[1, 2])
