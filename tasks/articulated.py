@@ -352,9 +352,10 @@ class ArticulatedPartEnv(BaseEnv):
     def _near_start_shift(self, robot_yaw: torch.Tensor) -> torch.Tensor:
         """(b, 3) base offsets for a training start-state curriculum: with probability
         ``near_start_prob`` the robot starts moved forward along its heading (the ready
-        pose points the gripper along the base's +x) so that the open fingers are
-        from 2 cm in front of the handle centre to 1 cm past it (plus the pose noise) instead of ``handle_standoff``, i.e. around
-        the handle, where closing them grasps it; otherwise no offset."""
+        pose points the gripper along the base's +x) so that the open fingers are from
+        2 cm in front of the handle centre to 1 cm past it (plus the pose noise) instead
+        of ``handle_standoff`` in front, i.e. around the handle, where closing them grasps
+        it; otherwise no offset."""
         b = len(robot_yaw)
         near = torch.rand(b) < self.near_start_prob
         forward = self.handle_standoff - 0.02 + torch.rand(b) * 0.03

@@ -218,7 +218,7 @@ def _env_fn(args: Args, rank: int):
             reconfiguration_freq=args.reconfiguration_freq,
             ignore_terminations=args.ignore_terminations,
             sim_config={"control_freq": args.control_freq},
-            **({"near_start_prob": args.near_start_prob} if args.near_start_prob > 0 else {}),
+            near_start_prob=args.near_start_prob,
         )
 
     return thunk
@@ -323,7 +323,7 @@ def make_train_env(args: Args):
         reward_mode=args.reward_mode,
         max_episode_steps=args.max_episode_steps,
         reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
-        **({"near_start_prob": args.near_start_prob} if args.near_start_prob > 0 else {}),
+        near_start_prob=args.near_start_prob,
     )
     return ManiSkillSB3VectorEnv(env)
 
