@@ -251,6 +251,44 @@ def test_flow_model_overfits_a_tiny_batch():
     assert metrics["exists_bce"] < 0.05
 
 
+
+def test_x0_prediction_returns_the_velocity_it_implies():
+    """predict="x0": the output layer's x0_hat becomes v = (x_t - x0_hat) / t. With the
+    zero-initialised output layer x0_hat = 0, so v = x_t / t by hand; the t floor holds."""
+    torch.manual_seed(0)
+    model = build("part_flow", dataclasses.replace(TINY_FLOW, predict="x0")).eval()
+    x, cond, mask = tiny_inputs()
+    t = torch.tensor([0.5, 0.01])
+    v = model(x, t, cond, mask).velocity
+    assert torch.allclose(v[0], x[0] / 0.5, atol=1e-6)
+    assert torch.allclose(v[1], x[1] / TINY_FLOW.x0_t_min, atol=1e-4)
+    # a live output layer moves x0_hat away from 0
+    randomize_modulation(model)
+    a = model(x, torch.tensor([0.3, 0.3]), cond, mask)
+    assert not torch.allclose(a.velocity, x / 0.3)
+    with pytest.raises(ValueError, match="predict"):
+        build("part_flow", dataclasses.replace(TINY_FLOW, predict="eps"))
+
+
+def test_x0_prediction_overfits_a_tiny_batch():
+    torch.manual_seed(0)
+    model = build("part_flow", dataclasses.replace(TINY_FLOW, predict="x0")).train()
+    x0, cond, mask = tiny_inputs()
+    exists = torch.tensor([[True, True, False], [True, False, False]])
+    cfg = FlowTrainConfig(p_uncond=0.0, p_mask_drop=0.0)
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    losses = []
+    for _ in range(200):
+        loss, metrics = flow_loss(
+            model, x0, cond, mask, exists, cfg, torch.Generator().manual_seed(3)
+        )
+        losses.append(metrics["mse"])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert losses[-1] < 0.05 * losses[0]
+
+
 # --- checkpoints --------------------------------------------------------------------
 
 

@@ -235,6 +235,22 @@ def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
     assert not torch.allclose(x, guided)
 
 
+def test_x0_prediction_velocity_by_hand():
+    """predict="x0" with the zero-initialised output layer: x0_hat = 0, so the velocity is
+    x_t / t on token voxels and 0 elsewhere."""
+    from dataclasses import replace
+
+    flow = Stage2FlowTransformer(replace(TINY_FLOW, predict="x0")).eval()
+    toks, _ = _tiny_tokens()
+    batch = collate([toks], TINY_FLOW.max_tokens)
+    m = batch.active.repeat_interleave(8, -1).float()
+    x = torch.randn(batch.x.shape, generator=torch.Generator().manual_seed(0)) * m
+    with torch.no_grad():
+        v = flow(batch.with_x(x), torch.full((1,), 0.25), torch.randn(1, 5, 16)).velocity
+    assert torch.allclose(v, x / 0.25, atol=1e-5)
+    assert float(v.abs().max()) > 0
+
+
 def test_training_step_joint_loss_backpropagates():
     torch.manual_seed(0)
     from generator.pact.image_encoder import ImageEncoder, ViTConfig

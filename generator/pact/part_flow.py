@@ -38,10 +38,12 @@ import torch.utils.checkpoint
 from .registry import register
 from .transformer import (
     MLP,
+    PREDICTIONS,
     CrossAttention,
     SelfAttention,
     TimestepEmbedder,
     init_adaln_transformer,
+    output_to_velocity,
     sincos_3d,
 )
 
@@ -64,6 +66,13 @@ class PartFlowConfig:
     grad_checkpoint: bool = False
     part_embed_std: float = 0.02  # initial scale of E (the latent inputs are unit-scale)
     zero_init_mask_proj: bool = True  # mask projection starts at 0 (image tokens unchanged)
+    # What the output layer predicts. "velocity": v = eps - x_0 directly (TRELLIS). "x0": the
+    # clean latent x0_hat, returned as the velocity it implies, (x_t - x0_hat) / max(t, t_min).
+    # Use "x0" when a token (C p^3 values) is wider than the model (width D): a velocity
+    # output must then pass the noise eps through a D-wide bottleneck, which it cannot do,
+    # while x_0 is structured and fits (docs/pact.md, "The patch bottleneck").
+    predict: str = "velocity"
+    x0_t_min: float = 0.02  # t floor in the x0 -> velocity conversion
 
     @property
     def tokens_per_part(self) -> int:
@@ -75,7 +84,7 @@ class PartFlowConfig:
 
 
 class FlowOutput(NamedTuple):
-    velocity: torch.Tensor  # (B, K, C, r, r, r)
+    velocity: torch.Tensor  # (B, K, C, r, r, r), whatever ``predict`` is
     exists_logits: torch.Tensor  # (B, K)
     features: torch.Tensor  # (B, K, L, D), last-block token features
 
@@ -119,6 +128,8 @@ class PartFlowTransformer(nn.Module):
         super().__init__()
         if cfg.latent_resolution % cfg.patch_size:
             raise ValueError("latent_resolution must be a multiple of patch_size")
+        if cfg.predict not in PREDICTIONS:
+            raise ValueError(f"predict must be one of {PREDICTIONS}, got {cfg.predict!r}")
         self.cfg = cfg
         T, dp, D = cfg.max_parts, cfg.part_embed_dim, cfg.width
         patch_dim = cfg.latent_channels * cfg.patch_size**3
@@ -261,6 +272,7 @@ class PartFlowTransformer(nn.Module):
             else:
                 h = block(h, c, ctx)
         shift, scale = self.final_adaLN(c).chunk(2, dim=-1)  # (B, D)
-        out = self.out_proj(modulate(self.final_norm(h), shift, scale))  # (B, K, L, C p^3)
+        out = self.unpatchify(self.out_proj(modulate(self.final_norm(h), shift, scale)))
+        out = output_to_velocity(out, x, t, self.cfg.predict, self.cfg.x0_t_min)
         exists = self.exists_head(h).mean(dim=2).squeeze(-1)  # (B, K)
-        return FlowOutput(self.unpatchify(out), exists, h)
+        return FlowOutput(out, exists, h)

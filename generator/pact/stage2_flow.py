@@ -36,10 +36,12 @@ import torch.nn.functional as F
 from .registry import register
 from .transformer import (
     MLP,
+    PREDICTIONS,
     CrossAttention,
     RMSNorm,
     TimestepEmbedder,
     init_adaln_transformer,
+    output_to_velocity,
     sincos_3d,
 )
 
@@ -57,6 +59,10 @@ class Stage2FlowConfig:
     qk_norm: bool = True
     cond_dim: int = 128  # D_img
     max_tokens: int = 768
+    # "velocity" (TRELLIS) or "x0": see PartFlowConfig.predict; a small-config token
+    # (p^3 C = 512 latents) is wider than the model, so a velocity output cannot carry eps
+    predict: str = "velocity"
+    x0_t_min: float = 0.02
 
     @property
     def grid(self) -> int:
@@ -146,6 +152,8 @@ class Stage2FlowTransformer(nn.Module):
         super().__init__()
         if cfg.resolution % cfg.patch_size:
             raise ValueError("resolution must be a multiple of patch_size")
+        if cfg.predict not in PREDICTIONS:
+            raise ValueError(f"predict must be one of {PREDICTIONS}, got {cfg.predict!r}")
         self.cfg = cfg
         D, pv = cfg.width, cfg.patch_voxels
         self.input_proj = nn.Linear(pv * cfg.latent_channels + 2 * pv, D)
@@ -193,6 +201,7 @@ class Stage2FlowTransformer(nn.Module):
             h = block(h, c, ctx, valid)
         shift, scale = self.final_adaLN(c).chunk(2, dim=-1)
         out = self.out_proj(modulate(self.final_norm(h), shift, scale))  # (B, L, p^3 C)
+        out = output_to_velocity(out, tokens.x, t, self.cfg.predict, self.cfg.x0_t_min)
         # only token voxels carry latents: zero the velocity elsewhere
         C = self.cfg.latent_channels
         keep = tokens.active.repeat_interleave(C, dim=-1) & valid[..., None]
