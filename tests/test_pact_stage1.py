@@ -251,7 +251,6 @@ def test_flow_model_overfits_a_tiny_batch():
     assert metrics["exists_bce"] < 0.05
 
 
-
 def test_x0_prediction_returns_the_velocity_it_implies():
     """predict="x0": the output layer's x0_hat becomes v = (x_t - x0_hat) / t. With the
     zero-initialised output layer x0_hat = 0, so v = x_t / t by hand; the t floor holds."""
