@@ -69,6 +69,11 @@ def main() -> None:
         help="fraction of training episodes starting with the fingers around the handle",
     )
     ap.add_argument(
+        "--require-grasp",
+        action="store_true",
+        help="dense reward: the grasp term only for a real grasp (not for a hook)",
+    )
+    ap.add_argument(
         "--log-std-init",
         type=float,
         default=None,
@@ -95,6 +100,7 @@ def main() -> None:
         vector=a.vector,
         control_mode=a.control_mode,
         near_start_prob=a.near_start_prob,
+        require_grasp=a.require_grasp,
         total_timesteps=a.total_timesteps,
         max_minutes=a.minutes,
         eval_every=a.eval_every,

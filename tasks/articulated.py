@@ -99,6 +99,7 @@ class ArticulatedPartEnv(BaseEnv):
         object_yaw_noise: float = 0.1,
         robot_pos_noise: float = 0.02,
         near_start_prob: float = 0.0,
+        require_grasp: bool = False,
         sim_options: SimOptions = DEFAULT_SIM_OPTIONS,
         reconfiguration_freq: int | None = None,
         num_envs: int = 1,
@@ -114,6 +115,7 @@ class ArticulatedPartEnv(BaseEnv):
         if near_start_prob > 0 and (self.joint_type != "prismatic" or self.closing):
             raise ValueError("near_start_prob applies to the drawer opening task only")
         self.near_start_prob = float(near_start_prob)
+        self.require_grasp = bool(require_grasp)
         self.sim_options = sim_options
         if reconfiguration_freq is None:
             reconfiguration_freq = 1 if num_envs == 1 else 0
@@ -447,14 +449,16 @@ class ArticulatedPartEnv(BaseEnv):
     def compute_dense_reward(self, obs: Any, action: torch.Tensor, info: dict) -> torch.Tensor:
         """reach (1 - tanh(5 d), d = tcp to handle) + grasp (1 while both fingers press on
         the target part) + 3 x progress; ``max_reward`` on success. Once the part has
-        moved 5% of the way, reach and grasp count as full (a push or a hook is as good
-        as a grasp)."""
+        moved 5% of the way, reach counts as full, and so does grasp (a push or a hook is
+        as good as a grasp) unless the env was made with ``require_grasp=True``: then
+        only a real grasp earns the grasp term."""
         reach = 1.0 - torch.tanh(5.0 * info["tcp_to_handle_dist"])
         grasp = info["is_grasped"].float()
         progress = self.progress(info)
         moved = progress > 0.05
         reach = torch.where(moved, torch.ones_like(reach), reach)
-        grasp = torch.where(moved, torch.ones_like(grasp), grasp)
+        if not self.require_grasp:
+            grasp = torch.where(moved, torch.ones_like(grasp), grasp)
         reward = reach + grasp + 3.0 * progress
         reward = torch.where(info["success"], torch.full_like(reward, self.max_reward), reward)
         return reward

@@ -97,6 +97,10 @@ class Args:
     fingers around the handle instead of 12 cm in front of it (a start-state
     curriculum, ``ArticulatedPartEnv(near_start_prob=)``); evaluation always starts at
     the task's standard pose"""
+    require_grasp: bool = False
+    """dense reward: the grasp term only for a real grasp, also once the part moves
+    (``ArticulatedPartEnv(require_grasp=)``); by default a hook that moves the part
+    earns it too, as in ManiSkill's cabinet tasks"""
     normalize_obs: bool = True
     """running mean/std observation normalization (SB3 VecNormalize); the statistics are
     saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
@@ -219,6 +223,7 @@ def _env_fn(args: Args, rank: int):
             ignore_terminations=args.ignore_terminations,
             sim_config={"control_freq": args.control_freq},
             near_start_prob=args.near_start_prob,
+            require_grasp=args.require_grasp,
         )
 
     return thunk
@@ -324,6 +329,7 @@ def make_train_env(args: Args):
         max_episode_steps=args.max_episode_steps,
         reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
         near_start_prob=args.near_start_prob,
+        require_grasp=args.require_grasp,
     )
     return ManiSkillSB3VectorEnv(env)
 

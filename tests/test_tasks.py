@@ -328,3 +328,27 @@ def test_near_start_curriculum_puts_the_fingers_round_the_handle(procedural_asse
     assert max(near) < 0.08 and np.mean(near) < np.mean(far) - 0.06
     with pytest.raises(ValueError, match="drawer opening"):
         _make("OpenDoor-v0", procedural_assets, near_start_prob=0.5)
+
+
+def test_require_grasp_withholds_the_grasp_term_from_a_hook(procedural_assets: Path) -> None:
+    """A drawer moved 30 % open with the gripper 12 cm away (no grasp): the default dense
+    reward counts the grasp term as earned (reach 1 + grasp 1 + 3 x progress, progress
+    = 0.3 / 0.75 of the goal: 3.2); ``require_grasp=True`` does not (2.2)."""
+    rewards = {}
+    for require in (False, True):
+        env = _make("OpenDrawer-v0", procedural_assets, reward_mode="dense", require_grasp=require)
+        try:
+            env.reset(seed=0)
+            u = env.unwrapped
+            q = u.object.get_qpos().clone()
+            q[0, u.target_dof_idx[0]] = u.qlow[0] + 0.3 * u.qrange[0]
+            u.object.set_qpos(q)
+            u.object.set_qvel(torch.zeros_like(q))
+            info = u.evaluate()
+            assert not bool(info["is_grasped"][0]) and not bool(info["success"][0])
+            r = u.compute_dense_reward(obs=None, action=None, info=info)
+            rewards[require] = float(r[0])
+        finally:
+            env.close()
+    assert rewards[False] == pytest.approx(3.2, abs=1e-3)
+    assert rewards[True] == pytest.approx(2.2, abs=1e-3)
