@@ -1,7 +1,7 @@
 """PAct's ablations on the fixed test split (paper sec. 5.3). Prints JSON, then a table.
 
     .venv/bin/python bench/ablation.py [--voxels stage1|gt] [--per-category 6]
-        [--split-dir runs/test_split] [--limit N]
+        [--split-dir runs/test_split] [--limit N] [--weights FOLDER]
 
 Variants (one generation per object; the variants share its geometry and differ only in
 the articulation read-out):
@@ -66,6 +66,9 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=0, help="only the first N objects")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument(
+        "--weights", type=Path, default=None, help="weights folder (default: the shipped small)"
+    )
+    ap.add_argument(
         "--threads", type=int, default=1, help="torch threads (1 is fastest on 2 busy cores)"
     )
     args = ap.parse_args()
@@ -78,7 +81,7 @@ def main() -> None:
     ids = write_test_split(args.split_dir, args.per_category)
     if args.limit:
         ids = ids[: args.limit]
-    gen = PActGenerator.default()
+    gen = PActGenerator.load(args.weights) if args.weights else PActGenerator.default()
     variants: list[tuple[str, int, str]] = [("S=1", 1, "stage2"), ("S=15", 15, "stage2"),
                                             ("S=20", 20, "stage2")]  # fmt: skip
     if args.voxels == "stage1" and gen.stage1_head is not None:

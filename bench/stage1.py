@@ -23,6 +23,7 @@ meshes voxelized in the normalized frame exactly as the training set does
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
@@ -90,6 +91,8 @@ def main() -> None:
     ap.add_argument("--no-retrieval", action="store_true")
     ap.add_argument("--batch", type=int, default=14, help="objects sampled together")
     ap.add_argument("--latency-objects", type=int, default=2, help="timed alone (batch 1)")
+    ap.add_argument("--cfg-scale", type=float, default=None, help="default: the checkpoint's")
+    ap.add_argument("--steps", type=int, default=None, help="default: the checkpoint's")
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
     torch.set_num_threads(args.threads)
@@ -100,6 +103,10 @@ def main() -> None:
     split = Path(args.split)
     ids = write_test_split(split, per_category=args.per_category)[: args.limit]
     gen = Stage1Generator.load(args.weights)
+    gen.sampler = dataclasses.replace(
+        gen.sampler,
+        **{k: v for k, v in (("cfg_scale", args.cfg_scale), ("steps", args.steps)) if v is not None},
+    )
     methods = {"stage1_mask": [], "stage1_nomask": []}
     retrieval = None
     if not args.no_retrieval:
