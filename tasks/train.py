@@ -385,7 +385,9 @@ def evaluate(
     obs_norm: ObsNorm | None = None,
     **env_kwargs: Any,
 ) -> dict[str, Any]:
-    """Success rate and mean return of ``policy`` (an SB3 model or a path to one) on ``assets``.
+    """Success rate, mean return and grasp rate of ``policy`` (an SB3 model or a path to
+    one) on ``assets``; an episode counts as grasped when ``is_grasped`` was true at any
+    step (a policy can also open a drawer by hooking its handle).
 
     Episode k is seeded ``seed + k`` (each reset loads an asset sampled from ``assets``).
     A policy given by path brings its run's observation normalization and its control
@@ -404,21 +406,23 @@ def evaluate(
             env_kwargs.setdefault(k, v)
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
     norm = obs_norm or (lambda o: o)
-    successes, returns, ids = [], [], []
+    successes, returns, ids, grasped = [], [], [], []
     try:
         for k in range(episodes):
             obs, _ = env.reset(seed=seed + k)
             frames = [env.render()] if video_dir else []
-            done, ret, info = False, 0.0, {}
+            done, ret, info, held = False, 0.0, {}, False
             while not done:
                 action, _ = policy.predict(norm(obs), deterministic=deterministic)
                 obs, r, term, trunc, info = env.step(action)
                 ret += r
+                held = held or bool(info.get("is_grasped", False))
                 done = term or trunc
                 if video_dir:
                     frames.append(env.render())
             successes.append(bool(info.get("success", False)))
             returns.append(ret)
+            grasped.append(held)
             ids.append(env.unwrapped.episode_assets[0].id)
             if video_dir:
                 write_video(frames, Path(video_dir) / f"episode_{k:03d}_{ids[-1]}")
@@ -427,9 +431,10 @@ def evaluate(
     return {
         "success_rate": float(np.mean(successes)) if successes else 0.0,
         "mean_return": float(np.mean(returns)) if returns else 0.0,
+        "grasp_rate": float(np.mean(grasped)) if grasped else 0.0,
         "episodes": [
-            {"asset": a, "success": s, "return": float(r)}
-            for a, s, r in zip(ids, successes, returns, strict=True)
+            {"asset": a, "success": s, "return": float(r), "grasped": g}
+            for a, s, r, g in zip(ids, successes, returns, grasped, strict=True)
         ],
     }
 

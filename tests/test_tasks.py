@@ -241,6 +241,7 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
     assert saved["control_mode"] == args.control_mode
     res = evaluate(str(run / "policy.zip"), "OpenDrawer-v0", str(procedural_assets), episodes=1)
     assert len(res["episodes"]) == 1 and np.isfinite(res["mean_return"])
+    assert res["grasp_rate"] == float(res["episodes"][0]["grasped"])
 
 
 def test_obs_norm_matches_vec_normalize():
