@@ -70,8 +70,10 @@ def main() -> None:
     )
     ap.add_argument(
         "--require-grasp",
-        action="store_true",
-        help="dense reward: the grasp term only for a real grasp (not for a hook)",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="dense reward: the grasp term only for a real grasp, not for a hook "
+        "(default: tasks.train.Args, on)",
     )
     ap.add_argument(
         "--log-std-init",
@@ -92,6 +94,8 @@ def main() -> None:
     train_dir = build_procedural(out / "assets" / "train", n=a.n_train, split="train")
     test_dir = build_procedural(out / "assets" / "test", n=a.n_test, split="test")
     extra = {} if a.log_std_init is None else {"log_std_init": a.log_std_init}
+    if a.require_grasp is not None:
+        extra["require_grasp"] = a.require_grasp
     args = Args(
         env_id="OpenDrawer-v0",
         assets=str(train_dir),
@@ -100,7 +104,6 @@ def main() -> None:
         vector=a.vector,
         control_mode=a.control_mode,
         near_start_prob=a.near_start_prob,
-        require_grasp=a.require_grasp,
         total_timesteps=a.total_timesteps,
         max_minutes=a.minutes,
         eval_every=a.eval_every,

@@ -97,10 +97,12 @@ class Args:
     fingers around the handle instead of 12 cm in front of it (a start-state
     curriculum, ``ArticulatedPartEnv(near_start_prob=)``); evaluation always starts at
     the task's standard pose"""
-    require_grasp: bool = False
+    require_grasp: bool = True
     """dense reward: the grasp term only for a real grasp, also once the part moves
-    (``ArticulatedPartEnv(require_grasp=)``); by default a hook that moves the part
-    earns it too, as in ManiSkill's cabinet tasks"""
+    (``ArticulatedPartEnv(require_grasp=)``; the env's own default lets a hook that moves
+    the part earn it too, as in ManiSkill's cabinet tasks). Measured with ``bench/rl.py``:
+    final policy on 50 held-out episodes 0.56 after 25 min and 0.62 after 60 min, against
+    0.42 and 0.46 without; the 20-episode curve points average the same (about 0.46)"""
     normalize_obs: bool = True
     """running mean/std observation normalization (SB3 VecNormalize); the statistics are
     saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
