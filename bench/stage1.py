@@ -105,7 +105,9 @@ def main() -> None:
     gen = Stage1Generator.load(args.weights)
     gen.sampler = dataclasses.replace(
         gen.sampler,
-        **{k: v for k, v in (("cfg_scale", args.cfg_scale), ("steps", args.steps)) if v is not None},
+        **{
+            k: v for k, v in (("cfg_scale", args.cfg_scale), ("steps", args.steps)) if v is not None
+        },
     )
     methods = {"stage1_mask": [], "stage1_nomask": []}
     retrieval = None

@@ -279,8 +279,8 @@ def test_training_step_joint_loss_backpropagates():
 
 def test_shipped_model_generates_a_valid_object_from_an_example_image():
     """The shipped small PAct (both stages + head) on a bundled example image and mask:
-    a valid ArticulatedObject with the mask's movable part, joints that are valid before
-    any repair, and per-stage timings. (Whether it also passes the SAPIEN checks is the
+    a valid ArticulatedObject with at most the mask's movable parts, valid joints (type,
+    unit axis, lower < upper) and per-stage timings. (Whether it also passes the SAPIEN checks is the
     pipeline's job; with the current stage 1 it does not: docs/model-card.md.)"""
     from pathlib import Path
 

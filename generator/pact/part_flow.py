@@ -38,10 +38,10 @@ import torch.utils.checkpoint
 from .registry import register
 from .transformer import (
     MLP,
-    PREDICTIONS,
     CrossAttention,
     SelfAttention,
     TimestepEmbedder,
+    check_prediction,
     init_adaln_transformer,
     output_to_velocity,
     sincos_3d,
@@ -128,8 +128,7 @@ class PartFlowTransformer(nn.Module):
         super().__init__()
         if cfg.latent_resolution % cfg.patch_size:
             raise ValueError("latent_resolution must be a multiple of patch_size")
-        if cfg.predict not in PREDICTIONS:
-            raise ValueError(f"predict must be one of {PREDICTIONS}, got {cfg.predict!r}")
+        check_prediction(cfg.predict)
         self.cfg = cfg
         T, dp, D = cfg.max_parts, cfg.part_embed_dim, cfg.width
         patch_dim = cfg.latent_channels * cfg.patch_size**3

@@ -36,10 +36,10 @@ import torch.nn.functional as F
 from .registry import register
 from .transformer import (
     MLP,
-    PREDICTIONS,
     CrossAttention,
     RMSNorm,
     TimestepEmbedder,
+    check_prediction,
     init_adaln_transformer,
     output_to_velocity,
     sincos_3d,
@@ -152,8 +152,7 @@ class Stage2FlowTransformer(nn.Module):
         super().__init__()
         if cfg.resolution % cfg.patch_size:
             raise ValueError("resolution must be a multiple of patch_size")
-        if cfg.predict not in PREDICTIONS:
-            raise ValueError(f"predict must be one of {PREDICTIONS}, got {cfg.predict!r}")
+        check_prediction(cfg.predict)
         self.cfg = cfg
         D, pv = cfg.width, cfg.patch_voxels
         self.input_proj = nn.Linear(pv * cfg.latent_channels + 2 * pv, D)

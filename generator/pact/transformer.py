@@ -152,18 +152,23 @@ def init_adaln_transformer(model: nn.Module, zero: tuple[nn.Linear, ...]) -> Non
 PREDICTIONS = ("velocity", "x0")
 
 
+def check_prediction(predict: str) -> None:
+    """Raise ValueError unless ``predict`` names a flow output parameterization."""
+    if predict not in PREDICTIONS:
+        raise ValueError(f"predict must be one of {PREDICTIONS}, got {predict!r}")
+
+
 def output_to_velocity(
     out: torch.Tensor, x_t: torch.Tensor, t: torch.Tensor, predict: str, t_min: float
 ) -> torch.Tensor:
     """A flow network's raw output -> the rectified-flow velocity v = eps - x_0.
 
-    ``predict == "velocity"``: the output is v. ``"x0"``: the output is x0_hat, and with
+    ``predict == "velocity"``: the output is v. ``"x0"`` (the only other value,
+    ``check_prediction``): the output is x0_hat, and with
     x_t = (1 - t) x_0 + t eps the velocity it implies is (x_t - x0_hat) / t (t floored at
     ``t_min``). t (B,) broadcasts over the trailing dims of ``out``.
     """
     if predict == "velocity":
         return out
-    if predict != "x0":
-        raise ValueError(f"predict must be one of {PREDICTIONS}, got {predict!r}")
     tt = t.clamp_min(t_min).view(-1, *([1] * (out.dim() - 1))).to(out.dtype)
     return (x_t.to(out.dtype) - out) / tt
