@@ -31,6 +31,7 @@ from stage1 import part_grids  # noqa: E402
 
 from generator.articulated import load_bundle  # noqa: E402
 from generator.pact.flow import noisy  # noqa: E402
+from generator.pact.preprocess import encoder_inputs  # noqa: E402
 from generator.pact.stage1_generator import Stage1Generator  # noqa: E402
 
 TIMES = (0.9, 1.0)
@@ -54,13 +55,18 @@ def conditioning_mse(gen: Stage1Generator, split: Path, ids: list[str], seed: in
         z = vae.encode_parts(occ)
         z[0, len(gt) :] = vae.empty_latent()
         x0 = stats.normalize(z) if stats is not None else z
-        cond = encoder(img)
+        # a foreground-cropping encoder: cropped by the mask, or by the silhouette net
+        img_m, m = encoder_inputs(encoder, img, m)
+        img_fg = img_m
+        if encoder.cfg.foreground_crop and "foreground" in gen.models:
+            img_fg, _ = encoder_inputs(encoder, img, None, gen.models["foreground"])
+        cond, cond_fg = encoder(img_m), encoder(img_fg)
         for t in TIMES:
             eps = torch.randn(x0.shape, generator=g)
             tt = torch.full((1,), t)
             for name, c, mm in (
                 ("image+mask", cond, m),
-                ("image", cond, None),
+                ("image", cond_fg, None),
                 ("none", None, None),
             ):
                 v = flow(noisy(x0, eps, tt), tt, c, mm).velocity

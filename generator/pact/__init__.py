@@ -2,10 +2,19 @@
 
 Modules: ``ss_vae`` (occupancy <-> latent), ``image_encoder`` (ViT / DINOv2 ViT-L/14),
 ``part_flow`` (part-aware flow transformer), ``flow`` (rectified flow loss and sampler),
-``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``registry``.
+``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``registry``,
+``preprocess`` (foreground crop before the encoder), ``foreground`` (silhouette U-Net).
 """
 
-from . import articulation, image_encoder, part_flow, slat_vae, ss_vae, stage2_flow  # noqa: F401  (register the models)
+from . import (  # noqa: F401  (register the models)
+    articulation,
+    foreground,
+    image_encoder,
+    part_flow,
+    slat_vae,
+    ss_vae,
+    stage2_flow,
+)
 from .checkpoint import load_checkpoint, save_checkpoint
 from .flow import FlowTrainConfig, SamplerConfig, flow_loss, sample
 from .registry import build

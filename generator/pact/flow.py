@@ -25,6 +25,10 @@ class FlowTrainConfig:
     p_uncond: float = 0.1  # image (and mask) replaced by the null condition
     p_mask_drop: float = 0.3  # only the mask replaced by "no mask"
     exists_weight: float = 0.1  # BCE on the per-slot exists logit
+    # training inputs of a foreground-cropping encoder: crop centre and margin jitter
+    crop_jitter: float = 0.0
+    # weight of the encoder's auxiliary per-patch part-id loss (needs aux_seg_classes)
+    aux_seg_weight: float = 0.0
     lr: float = 1e-4
     batch_size: int = 8
     bf16: bool = True

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
@@ -39,6 +38,7 @@ from .articulation import (
     postprocess_joint,
 )
 from .checkpoint import load_checkpoint
+from .preprocess import encoder_inputs, square_inputs
 from .slat_vae import decode_latents, decode_part_mesh
 from .stage2 import (
     Stage2Config,
@@ -78,21 +78,6 @@ class PActRun:
     valid: torch.Tensor
     features_1: list[torch.Tensor] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
-
-
-def _square_resize(image: np.ndarray, size: int) -> torch.Tensor:
-    """(H, W, 3) uint8 -> (1, 3, size, size) in [0, 1]; non-square images are padded."""
-    image = np.asarray(image)[..., :3]
-    h, w = image.shape[:2]
-    if h != w:
-        s = max(h, w)
-        pad = np.zeros((s, s, 3), np.uint8)
-        pad[(s - h) // 2 : (s - h) // 2 + h, (s - w) // 2 : (s - w) // 2 + w] = image
-        image = pad
-    img = torch.from_numpy(np.array(image, np.uint8)).permute(2, 0, 1)[None].float() / 255.0
-    if img.shape[-1] != size:
-        img = F.interpolate(img, size=(size, size), mode="bilinear", antialias=True)
-    return img.clamp(0, 1)
 
 
 def _load_fp32(path: Path, device: str) -> torch.nn.Module:
@@ -204,9 +189,12 @@ class PActGenerator:
             timings["stage1"] = time.perf_counter() - t
         occupancy = np.asarray(occupancy, bool)[: self.cfg.flow.max_parts]
         t = time.perf_counter()
-        img = _square_resize(image, self.cfg.image_encoder.image_size).to(self.device)
+        encoder = self.models["image_encoder"]
+        img, m, _, _ = square_inputs(image, mask, encoder.cfg.image_size)
+        foreground = None if self.stage1 is None else self.stage1.models.get("foreground")
         with torch.no_grad():
-            cond = self.models["image_encoder"](img)  # (1, N_img, D_img)
+            img, _ = encoder_inputs(encoder, img.to(self.device), m, foreground)
+            cond = encoder(img)  # (1, N_img, D_img)
         timings["encode"] = time.perf_counter() - t
         t = time.perf_counter()
         coords, slot = voxels_from_occupancy(occupancy)

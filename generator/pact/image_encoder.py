@@ -21,6 +21,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from .preprocess import foreground_crop
 from .registry import register
 from .transformer import MLP, SelfAttention
 
@@ -45,6 +46,13 @@ class ViTConfig:
     output: str = "norm"
     weights: str | None = None  # local DINOv2 state dict (.pth / .safetensors)
     freeze: bool = False  # frozen encoders run in eval mode without gradients
+    # inputs whitened outside the foreground and cropped round it (preprocess.py);
+    # the margin is the fraction of the box's longer side added on each side
+    foreground_crop: bool = False
+    crop_margin: float = 0.1
+    # > 0: a linear head on the patch tokens predicting each patch's part-id histogram
+    # (0 background, 1 base, 2.. parts), an auxiliary training loss (train.py)
+    aux_seg_classes: int = 0
 
     @property
     def grid(self) -> int:
@@ -100,6 +108,7 @@ class ImageEncoder(nn.Module):
         self.pos_embed = nn.Parameter(torch.randn(1, 1 + cfg.grid**2, D) * 0.02)
         self.blocks = nn.ModuleList(ViTBlock(cfg) for _ in range(cfg.depth))
         self.ln_f = nn.LayerNorm(D, eps=1e-6)
+        self.seg_head = nn.Linear(D, cfg.aux_seg_classes) if cfg.aux_seg_classes else None
         self.register_buffer("pixel_mean", torch.tensor(_IMAGENET_MEAN).view(1, 3, 1, 1), False)
         self.register_buffer("pixel_std", torch.tensor(_IMAGENET_STD).view(1, 3, 1, 1), False)
         if cfg.weights:
@@ -113,6 +122,39 @@ class ImageEncoder(nn.Module):
 
     def train(self, mode: bool = True) -> ImageEncoder:
         return super().train(mode and not self.cfg.freeze)
+
+    def prepare(
+        self,
+        images: torch.Tensor,
+        fg: torch.Tensor | None,
+        masks: torch.Tensor | None = None,
+        jitter: float = 0.0,
+        generator: torch.Generator | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """The inputs this encoder was trained on: with ``foreground_crop``, images
+        (B, 3, H, W) whitened outside ``fg`` (B, H, W) and cropped round it, the part
+        ``masks`` (B, H, W) cropped alike (preprocess.foreground_crop); else unchanged."""
+        if not self.cfg.foreground_crop:
+            return images, masks
+        if fg is None:
+            raise ValueError("this image encoder expects foreground-cropped inputs: give fg")
+        return foreground_crop(
+            images,
+            fg,
+            masks,
+            size=self.cfg.image_size,
+            margin=self.cfg.crop_margin,
+            jitter=jitter,
+            generator=generator,
+        )
+
+    def segment(self, tokens: torch.Tensor) -> torch.Tensor:
+        """tokens (B, N_img, D) from ``forward`` -> per-patch part-id logits
+        (B, grid, grid, aux_seg_classes)."""
+        if self.seg_head is None:
+            raise ValueError("this image encoder has no segmentation head (aux_seg_classes 0)")
+        g = self.cfg.grid
+        return self.seg_head(tokens[:, self.cfg.num_prefix_tokens :]).view(len(tokens), g, g, -1)
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
         """images (B, 3, H, W) RGB in [0, 1] -> tokens (B, 1 + n_reg + grid^2, D_img)."""

@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
+from .preprocess import encoder_inputs, square_inputs
 from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
 log = logging.getLogger(__name__)
@@ -109,20 +109,6 @@ def _part_color(image: np.ndarray, mask: np.ndarray | None, mask_id: int) -> tup
     return (*(int(round(c)) for c in rgb), 255)
 
 
-def _square(image: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Pad a non-square image (edge colour) and its mask (background) to a square."""
-    H, W = image.shape[:2]
-    if H == W:
-        return image, mask
-    S = max(H, W)
-    top, left = (S - H) // 2, (S - W) // 2
-    pad = ((top, S - H - top), (left, S - W - left))
-    image = np.pad(image, (*pad, (0, 0)), mode="edge")
-    if mask is not None:
-        mask = np.pad(mask, pad)
-    return image, mask
-
-
 # --- the generator ----------------------------------------------------------------------
 
 
@@ -163,6 +149,8 @@ class Stage1Generator:
         device = kwargs.get("device", "cpu")
         models, cfg, stats = load_stage1(folder / "stage1", device)
         models["vae"] = load_checkpoint(folder / "ss_vae", device).eval()
+        if (folder / "foreground").is_dir():  # silhouettes for mask-less inputs (preprocess.py)
+            models["foreground"] = load_checkpoint(folder / "foreground", device).eval()
         digest = hashlib.sha256((folder / "stage1" / "model.safetensors").read_bytes())
         kwargs.setdefault("version", f"stage1-{folder.name}-{digest.hexdigest()[:10]}")
         return cls(models, cfg, stats, **kwargs)
@@ -179,19 +167,9 @@ class Stage1Generator:
     ) -> tuple[torch.Tensor, torch.Tensor | None, np.ndarray, np.ndarray | None]:
         """uint8 (H, W, 3) image and (H, W) mask -> model inputs (1, 3, S, S) in [0, 1]
         and (1, S, S) ids (or None), plus the squared uint8 image and mask."""
-        image = np.asarray(image)[..., :3]
-        if mask is not None:
-            mask = np.asarray(mask).astype(np.int64)
-            mask = np.where(mask > self.cfg.flow.max_parts, 0, mask)
-        image, mask = _square(image, mask)
-        S = self.cfg.image_encoder.image_size
-        img = torch.from_numpy(np.array(image)).permute(2, 0, 1)[None].float() / 255
-        if img.shape[-1] != S:
-            img = F.interpolate(img, size=(S, S), mode="bilinear", antialias=True).clamp(0, 1)
-        m = None
-        if mask is not None:
-            m = torch.from_numpy(np.ascontiguousarray(mask))[None, None].float()
-            m = F.interpolate(m, size=(S, S), mode="nearest")[0].long()
+        img, m, image, mask = square_inputs(
+            image, mask, self.cfg.image_encoder.image_size, self.cfg.flow.max_parts
+        )
         return img.to(self.device), None if m is None else m.to(self.device), image, mask
 
     def predict_parts(
@@ -213,6 +191,7 @@ class Stage1Generator:
         rows = [self.inputs(im, None if masks is None else masks[i]) for i, im in enumerate(images)]
         img = torch.cat([r[0] for r in rows])  # (B, 3, S, S)
         m = None if masks is None else torch.cat([r[1] for r in rows])  # (B, S, S)
+        img, m = encoder_inputs(self.models["image_encoder"], img, m, self.models.get("foreground"))
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
         occ, exists = generate_parts(
             self.models,

@@ -49,6 +49,7 @@ import numpy as np
 import torch
 import torch.distributed as dist
 import torch.nn as nn
+import torch.nn.functional as F
 
 from .checkpoint import load_checkpoint, save_checkpoint
 from .data import Stage1Dataset
@@ -461,6 +462,29 @@ def latent_cache(
     return cache, stats
 
 
+def encoder_inputs(
+    encoder: nn.Module,
+    batch: dict[str, torch.Tensor],
+    device: torch.device | str,
+    jitter: float = 0.0,
+    generator: torch.Generator | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """A batch's images and part masks as the encoder takes them (its ``prepare``: with
+    ``foreground_crop``, whitened and cropped round the GT foreground, mask != 0)."""
+    image, mask = batch["image"].to(device), batch["mask"].to(device)
+    return encoder.prepare(image, mask > 0, mask, jitter, generator)
+
+
+def aux_seg_loss(encoder: nn.Module, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Soft cross-entropy of the encoder's per-patch part-id logits against each patch's
+    histogram of mask ids (ids past the head's classes count as background)."""
+    logits = encoder.segment(tokens).float()  # (B, g, g, C)
+    C, p = logits.shape[-1], encoder.cfg.patch_size
+    ids = torch.where(mask >= C, torch.zeros_like(mask), mask)
+    hist = F.avg_pool2d(F.one_hot(ids, C).permute(0, 3, 1, 2).float(), p)  # (B, C, g, g)
+    return -(hist.permute(0, 2, 3, 1) * logits.log_softmax(-1)).sum(-1).mean()
+
+
 def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, nn.Module]]:
     """Train the image encoder + part-aware flow on frozen-VAE latents; returns the
     stage-1 checkpoint folder and the models."""
@@ -536,13 +560,14 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
     def val_loss() -> dict[str, float]:
         encoder.eval(), flow.eval()
         with torch.no_grad(), _autocast(d.device, bf16):
-            cond = encoder(val_batch["image"].to(d.device))
+            image, mask = encoder_inputs(encoder, val_batch, d.device)
+            cond = encoder(image)
             x0 = val_cache[val_batch["object"]].to(d.device)
             _, m = flow_loss(
                 flow,
                 x0,
                 cond,
-                val_batch["mask"].to(d.device),
+                mask,
                 val_batch["exists"].to(d.device),
                 tcfg,
                 generator=step_generator(args.seed, 0, 8),
@@ -575,17 +600,24 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
 
         for g in opt.param_groups:
             g["lr"] = lr_at(step, lr, args, total)
+        image, mask = encoder_inputs(
+            encoder, batch, d.device, tcfg.crop_jitter, step_generator(args.seed, step, 2, d.rank)
+        )
         with _autocast(d.device, bf16):
-            cond = encoder(batch["image"].to(d.device))  # (B, N_img, D_img)
+            cond = encoder(image)  # (B, N_img, D_img)
             loss, metrics = flow_loss(
                 flow,
                 x0,
                 cond,
-                batch["mask"].to(d.device),
+                mask,
                 batch["exists"].to(d.device),
                 tcfg,
                 generator=step_generator(args.seed, step, 1, d.rank),
             )
+            if tcfg.aux_seg_weight > 0:
+                seg = aux_seg_loss(encoder, cond, mask)
+                loss = loss + tcfg.aux_seg_weight * seg
+                metrics.update(loss=loss.item(), aux_seg=seg.item())
         grad_norm = optimizer_step(opt, loss, params, d.world, args.grad_clip)
         step += 1
 

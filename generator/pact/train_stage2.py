@@ -31,6 +31,7 @@ import torch
 from generator.data.shards import read_manifest
 
 from .checkpoint import load_checkpoint, save_checkpoint
+from .preprocess import encoder_inputs
 from .slat_data import SlatObjects, build_cache, dequantize_sdf
 from .slat_vae import SlatVAE, SlatVAETrainConfig, decode_part_mesh, sparse_parts, vae_loss
 
@@ -405,13 +406,12 @@ def train_stage1_head(args: argparse.Namespace) -> None:
         with torch.no_grad():
             z0 = stats.normalize(ss_vae.encode_parts(occ))  # (B, K, C, r, r, r)
             t = sample_t(len(objs), device=args.device)
-            cond = s1["image_encoder"](images)
             m = torch.nn.functional.interpolate(
                 torch.from_numpy(mask)[:, None].float(), size=images.shape[-2:], mode="nearest"
             )[:, 0].long()
-            feats = s1["flow"](
-                noisy(z0, torch.randn_like(z0), t), t, cond, m.to(args.device)
-            ).features
+            images, m = encoder_inputs(s1["image_encoder"], images, m.to(args.device))
+            cond = s1["image_encoder"](images)
+            feats = s1["flow"](noisy(z0, torch.randn_like(z0), t), t, cond, m).features
         pred = head(pool_slots(feats))
         a = data.arrays
         tgt = ArticulationTargets(
