@@ -169,7 +169,7 @@ def test_foreground_cropping_stage1_trains_and_generates(tmp_path):
     train_stage1(data, run, str(cfg), "flow", steps=2, **FAST)
     log = (run / "flow" / "log.csv").read_text()
     assert "aux_seg" in log
-    export_weights(run, tmp_path / "w")
+    assert set(export_weights(run, tmp_path / "w")) == {"ss_vae", "stage1"}
     gen = Stage1Generator.load(tmp_path / "w")
     assert gen.models["image_encoder"].cfg.foreground_crop
     rng = np.random.default_rng(0)
@@ -181,7 +181,8 @@ def test_foreground_cropping_stage1_trains_and_generates(tmp_path):
     with pytest.raises(ForegroundMissingError):
         gen.generate(image, None)
     net = ForegroundNet(ForegroundConfig(image_size=32, channels=(4, 8)))
-    save_checkpoint(net, tmp_path / "w" / "foreground")
+    save_checkpoint(net, run / "foreground")
+    assert "foreground" in export_weights(run, tmp_path / "w")  # float16 on disk
     gen = Stage1Generator.load(tmp_path / "w")
     assert "foreground" in gen.models
     gen.generate(image, None).validate()  # the silhouette comes from the U-Net

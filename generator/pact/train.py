@@ -704,13 +704,18 @@ def export_weights(
     run_dir: str | Path, dest: str | Path, dtype: torch.dtype = torch.float16
 ) -> dict[str, Path]:
     """Copy a run's final checkpoints for shipping: ``dest/ss_vae`` and ``dest/stage1``,
-    floating-point tensors stored in ``dtype`` (loading casts back to float32)."""
+    and ``dest/foreground`` when the run has a silhouette net (``run_dir/foreground``,
+    from ``python -m generator.pact.train_foreground --out RUN_DIR``); floating-point
+    tensors stored in ``dtype`` (loading casts back to float32)."""
     run_dir, dest = Path(run_dir), Path(dest)
     vae = load_checkpoint(run_dir / "vae/checkpoint/ss_vae")
     half = copy.deepcopy(vae).to(dtype)
     out = {"ss_vae": save_checkpoint(half, dest / "ss_vae", {"dtype": str(dtype)})}
     models, cfg, stats = load_stage1(run_dir / "flow/checkpoint/stage1")
     out["stage1"] = save_stage1(models, cfg, dest / "stage1", stats, dtype=dtype)
+    if (run_dir / "foreground").is_dir():
+        net = load_checkpoint(run_dir / "foreground").to(dtype)
+        out["foreground"] = save_checkpoint(net, dest / "foreground", {"dtype": str(dtype)})
     return out
 
 
