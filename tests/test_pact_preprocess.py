@@ -20,6 +20,7 @@ from generator.pact.preprocess import (
     encoder_inputs,
     foreground_crop,
     square_inputs,
+    square_silhouette,
 )
 from generator.pact.stage1_generator import Stage1Generator
 from generator.pact.train import aux_seg_loss, export_weights, train_stage1
@@ -109,6 +110,19 @@ def test_encoder_inputs_need_a_mask_or_a_foreground_net():
         net.forward = lambda x: torch.where(fg, 10.0, -10.0).float()
     by_net, _ = encoder_inputs(enc, image, None, net)
     torch.testing.assert_close(by_net, cropped)
+    by_alpha, _ = encoder_inputs(enc, image, None, None, silhouette=fg)  # a photo's alpha
+    torch.testing.assert_close(by_alpha, cropped)
+    wrong = torch.zeros_like(fg)
+    wrong[0, 0, 0] = True  # the mask wins over the silhouette
+    torch.testing.assert_close(encoder_inputs(enc, image, mask, None, wrong)[0], cropped)
+
+
+def test_square_silhouette_pads_and_resizes_like_the_image():
+    alpha = np.zeros((4, 2), np.uint8)
+    alpha[1:3, :] = 255
+    sil = square_silhouette(alpha, 8)  # 4x2 -> padded 4x4 (one column each side) -> 8x8
+    assert sil.shape == (1, 8, 8) and sil.dtype == torch.bool
+    assert sil[0, 2:6, 2:6].all() and sil.sum() == 16
 
 
 def test_foreground_predict_keeps_the_largest_component():
@@ -180,6 +194,8 @@ def test_foreground_cropping_stage1_trains_and_generates(tmp_path):
     gen.generate(image, mask).validate()
     with pytest.raises(ForegroundMissingError):
         gen.generate(image, None)
+    alpha = np.where(mask > 0, 255, 0).astype(np.uint8)  # a photo's alpha channel
+    gen.generate(image, None, {"alpha": alpha}).validate()
     net = ForegroundNet(ForegroundConfig(image_size=32, channels=(4, 8)))
     save_checkpoint(net, run / "foreground")
     assert "foreground" in export_weights(run, tmp_path / "w")  # float16 on disk

@@ -38,7 +38,7 @@ from .articulation import (
     postprocess_joint,
 )
 from .checkpoint import load_checkpoint
-from .preprocess import encoder_inputs, square_inputs
+from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .slat_vae import decode_latents, decode_part_mesh
 from .stage2 import (
     Stage2Config,
@@ -154,7 +154,7 @@ class PActGenerator:
     # --- the chain ------------------------------------------------------------------------
 
     def stage1_parts(
-        self, image: np.ndarray, mask: np.ndarray | None
+        self, image: np.ndarray, mask: np.ndarray | None, alpha: np.ndarray | None = None
     ) -> tuple[np.ndarray, list[torch.Tensor]]:
         """Stage 1: part occupancies (K, R, R, R) and its per-step last-block features."""
         if self.stage1 is None:
@@ -167,6 +167,7 @@ class PActGenerator:
             [image],
             None if mask is None else [mask],
             callback=lambda i, t, f: feats.append(f[0].float().cpu()),
+            alphas=None if alpha is None else [alpha],
         )
         occ = occ[0]  # (T, R, R, R), tidied (stage1.tidy_parts)
         K = self.cfg.flow.max_parts
@@ -179,21 +180,24 @@ class PActGenerator:
         image: np.ndarray,
         mask: np.ndarray | None = None,
         occupancy: np.ndarray | None = None,
+        alpha: np.ndarray | None = None,
     ) -> PActRun:
-        """Stage 1 (unless ``occupancy`` (K, R, R, R) is given), stage 2, decode."""
+        """Stage 1 (unless ``occupancy`` (K, R, R, R) is given), stage 2, decode.
+        ``alpha``: the photo's alpha channel, the silhouette when there is no mask."""
         timings: dict[str, float] = {}
         t = time.perf_counter()
         feats1: list[torch.Tensor] = []
         if occupancy is None:
-            occupancy, feats1 = self.stage1_parts(image, mask)
+            occupancy, feats1 = self.stage1_parts(image, mask, alpha)
             timings["stage1"] = time.perf_counter() - t
         occupancy = np.asarray(occupancy, bool)[: self.cfg.flow.max_parts]
         t = time.perf_counter()
         encoder = self.models["image_encoder"]
         img, m, _, _ = square_inputs(image, mask, encoder.cfg.image_size)
         foreground = None if self.stage1 is None else self.stage1.models.get("foreground")
+        sil = None if alpha is None else square_silhouette(alpha, encoder.cfg.image_size)
         with torch.no_grad():
-            img, _ = encoder_inputs(encoder, img.to(self.device), m, foreground)
+            img, _ = encoder_inputs(encoder, img.to(self.device), m, foreground, sil)
             cond = encoder(img)  # (1, N_img, D_img)
         timings["encode"] = time.perf_counter() - t
         t = time.perf_counter()
@@ -325,7 +329,7 @@ class PActGenerator:
         mask: np.ndarray | None = None,
         hints: dict[str, Any] | None = None,
     ) -> ArticulatedObject:
-        return self.assemble(self.run(image, mask), hints)
+        return self.assemble(self.run(image, mask, alpha=(hints or {}).get("alpha")), hints)
 
     def generate_from_occupancy(
         self,

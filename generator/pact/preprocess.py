@@ -61,6 +61,14 @@ def square_inputs(
     return img.clamp(0, 1), m, image, mask
 
 
+def square_silhouette(alpha: np.ndarray, size: int) -> torch.Tensor:
+    """(H, W) uint8 alpha (255 = object) -> (1, size, size) bool, squared and resized as
+    ``square_inputs`` does the image."""
+    image = np.zeros((*np.asarray(alpha).shape[:2], 3), np.uint8)
+    _, m, _, _ = square_inputs(image, (np.asarray(alpha) > 127).astype(np.int64), size)
+    return m > 0
+
+
 def crop_boxes(fg: torch.Tensor, margin: float) -> torch.Tensor:
     """fg (B, H, W) bool -> (B, 3) square crops (centre x, centre y, half side) in the
     [-1, 1] coordinates of ``grid_sample`` (x along W, y along H); the whole image
@@ -144,14 +152,18 @@ def encoder_inputs(
     images: torch.Tensor,
     masks: torch.Tensor | None,
     foreground: torch.nn.Module | None = None,
+    silhouette: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
     """Inference inputs of ``encoder`` (an ``ImageEncoder``): its ``prepare`` with the
-    foreground taken from the part masks (B, H, W) when given, else predicted by
-    ``foreground`` (a ``ForegroundNet``)."""
+    foreground taken from the part masks (B, H, W) when given, else from ``silhouette``
+    (B, H, W) bool (a photo's alpha channel), else predicted by ``foreground`` (a
+    ``ForegroundNet``)."""
     if not encoder.cfg.foreground_crop:
         return images, masks
     if masks is not None:
         fg = masks > 0
+    elif silhouette is not None:
+        fg = silhouette.to(images.device).bool()
     elif foreground is not None:
         fg = foreground.predict(images)
     else:

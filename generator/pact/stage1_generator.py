@@ -36,7 +36,7 @@ from generator.articulated import ArticulatedObject, Joint, Part
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .preprocess import encoder_inputs, square_inputs
+from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
 log = logging.getLogger(__name__)
@@ -173,25 +173,45 @@ class Stage1Generator:
         return img.to(self.device), None if m is None else m.to(self.device), image, mask
 
     def predict_parts(
-        self, image: np.ndarray, mask: np.ndarray | None = None
+        self, image: np.ndarray, mask: np.ndarray | None = None, alpha: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Part occupancies (T, R, R, R) bool and used slots (T,) bool for one image."""
-        occ, exists = self.predict_parts_batch([image], None if mask is None else [mask])
+        occ, exists = self.predict_parts_batch(
+            [image],
+            None if mask is None else [mask],
+            alphas=None if alpha is None else [alpha],
+        )
         return occ[0], exists[0]
+
+    def silhouettes(self, alphas: list[np.ndarray] | None) -> torch.Tensor | None:
+        """Photos' alpha channels (255 = object) -> (B, S, S) bool model-size silhouettes."""
+        if alphas is None:
+            return None
+        S = self.cfg.image_encoder.image_size
+        return torch.cat([square_silhouette(a, S) for a in alphas]).to(self.device)
 
     def predict_parts_batch(
         self,
         images: list[np.ndarray],
         masks: list[np.ndarray] | None = None,
         callback: Any = None,
+        alphas: list[np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Several images at once (faster per image on a CPU): occupancies (B, T, R, R, R)
-        bool and used slots (B, T) bool. ``masks``: one per image, or None for none.
+        bool and used slots (B, T) bool. ``masks``: one per image, or None for none;
+        ``alphas``: the photos' alpha channels (silhouettes for images without masks), one
+        per image, or None (the silhouette U-Net then finds the object).
         ``callback(step, t, features)`` receives each sampling step's last-block features."""
         rows = [self.inputs(im, None if masks is None else masks[i]) for i, im in enumerate(images)]
         img = torch.cat([r[0] for r in rows])  # (B, 3, S, S)
         m = None if masks is None else torch.cat([r[1] for r in rows])  # (B, S, S)
-        img, m = encoder_inputs(self.models["image_encoder"], img, m, self.models.get("foreground"))
+        img, m = encoder_inputs(
+            self.models["image_encoder"],
+            img,
+            m,
+            self.models.get("foreground"),
+            self.silhouettes(alphas),
+        )
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
         occ, exists = generate_parts(
             self.models,
@@ -217,7 +237,7 @@ class Stage1Generator:
         hints: dict[str, Any] | None = None,
     ) -> ArticulatedObject:
         t0 = time.perf_counter()
-        occ, _ = self.predict_parts(image, mask)
+        occ, _ = self.predict_parts(image, mask, (hints or {}).get("alpha"))
         t1 = time.perf_counter()
         obj = self.assemble(occ, image, mask, hints)
         self.timings = {"stage1": t1 - t0, "mesh": time.perf_counter() - t1}
