@@ -6,7 +6,8 @@ from this small U-Net (TRELLIS uses rembg for the same job; nothing can be downl
 here, so it is trained on the training data engine's renders, whose part masks give
 the silhouettes for free):
 
-    python -m generator.pact.train_foreground --data runs/data/train --out runs/pact/foreground
+    python -m generator.pact.train_foreground --data runs/data/train --out runs/pact/stage1 \
+        --steps 600 --threads 1
 
 ``ForegroundNet(images) -> logits (B, H, W)``; ``predict`` thresholds them and keeps
 the largest connected component (a render holds one object). The renders' backgrounds
@@ -16,7 +17,6 @@ backdrop; photos far from those renders are its known limit (docs/model-card.md)
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,8 +25,6 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from .registry import register
-
-log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -84,7 +82,8 @@ class ForegroundNet(nn.Module):
     @torch.no_grad()
     def predict(self, images: torch.Tensor, threshold: float = 0.5) -> torch.Tensor:
         """images (B, 3, H, W) -> foreground (B, H, W) bool: the largest 8-connected
-        component of the thresholded probabilities (everything, when it is empty)."""
+        component of the thresholded probabilities (all False when no pixel passes the
+        threshold; ``preprocess.foreground_crop`` then keeps the whole image)."""
         from scipy import ndimage
 
         fg = (torch.sigmoid(self(images)) > threshold).cpu().numpy()

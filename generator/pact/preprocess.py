@@ -17,8 +17,9 @@ accuracy after 300-400 steps on the raw renders and 0.44-0.52 on whitened crops
 - the crop is resampled to ``size`` pixels (bilinear for the image, nearest for the
   part mask).
 
-The foreground is the part mask's non-zero pixels when there is a mask; without one it
-comes from ``generator.pact.foreground.ForegroundNet``. An image with no foreground at
+The foreground is the part mask's non-zero pixels when there is a mask; without one,
+the photo's alpha channel when it has one, else ``generator.pact.foreground.ForegroundNet``
+(``encoder_inputs``). An image with no foreground at
 all is only resized. ``jitter`` (training only) moves the crop's centre and margin a
 little so the encoder tolerates an imprecise box.
 """

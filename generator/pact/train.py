@@ -462,7 +462,7 @@ def latent_cache(
     return cache, stats
 
 
-def encoder_inputs(
+def training_inputs(
     encoder: nn.Module,
     batch: dict[str, torch.Tensor],
     device: torch.device | str,
@@ -560,7 +560,7 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
     def val_loss() -> dict[str, float]:
         encoder.eval(), flow.eval()
         with torch.no_grad(), _autocast(d.device, bf16):
-            image, mask = encoder_inputs(encoder, val_batch, d.device)
+            image, mask = training_inputs(encoder, val_batch, d.device)
             cond = encoder(image)
             x0 = val_cache[val_batch["object"]].to(d.device)
             _, m = flow_loss(
@@ -600,7 +600,7 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
 
         for g in opt.param_groups:
             g["lr"] = lr_at(step, lr, args, total)
-        image, mask = encoder_inputs(
+        image, mask = training_inputs(
             encoder, batch, d.device, tcfg.crop_jitter, step_generator(args.seed, step, 2, d.rank)
         )
         with _autocast(d.device, bf16):

@@ -1,6 +1,7 @@
 """Train the foreground U-Net (``foreground.ForegroundNet``) on a dataset folder.
 
-    python -m generator.pact.train_foreground --data runs/data/train --out runs/pact/foreground
+    python -m generator.pact.train_foreground --data runs/data/train --out runs/pact/stage1 \
+        --steps 600 --threads 1
 
 One sample is a random (object, view) image of the training split with its silhouette
 (part mask != 0) as the target, brightness/contrast jitter and horizontal flips; the
@@ -14,7 +15,6 @@ import argparse
 import json
 import logging
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import torch
@@ -88,7 +88,7 @@ def train_foreground(
     }
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    save_checkpoint(net, out / "foreground", extra={"metrics": metrics, "config": asdict(cfg)})
+    save_checkpoint(net, out / "foreground", extra={"metrics": metrics})
     (out / "foreground_val.json").write_text(json.dumps(metrics, indent=2))
     log.info("foreground: validation IoU %.4f on %d images", metrics["val_iou"], len(preds))
     return metrics
