@@ -7,7 +7,10 @@ last-block features collected by a ``FeatureAggregator`` over the last S steps) 
 decode (fine SDF + RGB per token voxel) -> marching cubes per part -> articulation head on
 the aggregated features (+ revolute origins projected onto the part's AABB surface) ->
 ``ArticulatedObject`` in the normalized frame (``scale`` None; a ``height`` hint in metres
-sets ``scale`` = height / the object's z extent).
+sets ``scale`` = height / the object's z extent). ``assemble`` returns that raw output
+(what the benchmarks score); ``generate`` then fits the box layout
+(``generator.box_layout``: box collision geometry and joints a simulator can move
+without collisions; ``box_layout=False`` turns it off).
 
 Slot 0 is the base; slots 1.. are movable parts named ``<semantic>_<slot>``. Without
 stage-1 checkpoints only ``generate_from_occupancy`` (teacher forcing with given part
@@ -28,6 +31,7 @@ import torch
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
+from generator.box_layout import fit_box_layout
 
 from .articulation import (
     ArticulationHead,
@@ -104,8 +108,10 @@ class PActGenerator:
         version: str = VERSION,
         device: torch.device | str = "cpu",
         stage1_head: ArticulationHead | None = None,
+        box_layout: bool = True,
     ) -> None:
         self.device = torch.device(device)
+        self.box_layout = box_layout
         self.models = {k: m.to(self.device).eval() for k, m in models.items()}
         self.cfg = cfg
         self.stage1 = stage1
@@ -329,7 +335,8 @@ class PActGenerator:
         mask: np.ndarray | None = None,
         hints: dict[str, Any] | None = None,
     ) -> ArticulatedObject:
-        return self.assemble(self.run(image, mask, alpha=(hints or {}).get("alpha")), hints)
+        obj = self.assemble(self.run(image, mask, alpha=(hints or {}).get("alpha")), hints)
+        return fit_box_layout(obj) if self.box_layout else obj
 
     def generate_from_occupancy(
         self,
@@ -338,4 +345,5 @@ class PActGenerator:
         hints: dict[str, Any] | None = None,
     ) -> ArticulatedObject:
         """Teacher forcing: stage 2 on given part voxels (K, R, R, R) (slot 0 = base)."""
-        return self.assemble(self.run(image, None, occupancy), hints)
+        obj = self.assemble(self.run(image, None, occupancy), hints)
+        return fit_box_layout(obj) if self.box_layout else obj

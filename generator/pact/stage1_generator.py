@@ -33,6 +33,7 @@ import torch
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
+from generator.box_layout import fit_box_layout
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
@@ -127,7 +128,9 @@ class Stage1Generator:
         seed: int = 0,
         version: str = "stage1",
         device: torch.device | str = "cpu",
+        box_layout: bool = True,
     ) -> None:
+        self.box_layout = box_layout
         self.models = {k: m.to(device).eval() for k, m in models.items()}
         self.cfg = cfg
         self.latent_stats = latent_stats
@@ -240,6 +243,8 @@ class Stage1Generator:
         occ, _ = self.predict_parts(image, mask, (hints or {}).get("alpha"))
         t1 = time.perf_counter()
         obj = self.assemble(occ, image, mask, hints)
+        if self.box_layout:  # box collision geometry, consistent joints (generator.box_layout)
+            obj = fit_box_layout(obj)
         self.timings = {"stage1": t1 - t0, "mesh": time.perf_counter() - t1}
         return obj
 

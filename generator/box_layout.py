@@ -1,0 +1,295 @@
+"""Box layout: collision boxes and joints that a simulator can move without collisions.
+
+A generated object (PAct, the stage-1 generator) has free-form part meshes: adjacent
+parts interpenetrate by a voxel or two, a drawer's mesh reaches into its neighbour's
+slide path, the base fills the drawer's cavity and predicted axes are a few degrees off.
+Decomposed as they are (CoACD), such parts jam, collide at rest and knock the base
+over in SAPIEN. :func:`fit_box_layout` gives every part an exact box geometry for
+collision (``Part.primitives``) and joints consistent with it, keeping the generated
+meshes as the visuals:
+
+1. Each movable part gets the axis-aligned box of its mesh. Its joint axis snaps to the
+   nearest of the frame's axes (furniture and appliances are axis-aligned in the object
+   frame: front +x, z up). A part's *outward normal* is the side it opens toward: a
+   prismatic part's axis (its sign turned to point from the object's centre toward the
+   part); for a revolute part, the axis perpendicular to the hinge along which its box
+   is thinnest (a door's face), signed the same way.
+2. Overlapping movable boxes are separated along an axis that is neither one's outward
+   normal (so two drawers never stand in each other's slide path), where they overlap
+   least, split at the middle of the overlap with a gap of ``clearance``. Shrinking
+   never creates a new overlap, so one pass over the pairs leaves them disjoint. A
+   revolute part's free edge sweeps up to ``sqrt(t^2 + w^2) - w`` past its box
+   (thickness t, width w); that is added to the gap on its free side.
+3. A revolute hinge goes on the box's outer face, on the lateral edge nearest the
+   predicted origin (the paper projects origins onto the box surface; this picks the
+   edge), its axis signed so a positive angle swings the free edge outward; the range is
+   [0, min(upper, pi/2)] (past 90 degrees a door sweeps in front of its neighbours). A
+   prismatic range is [0, min(upper, 0.9 x depth)]: an open drawer stays engaged.
+4. The base is the bounding box of all parts minus one cavity per movable part: its
+   box grown by ``clearance`` sideways and from its inner face out through the base's
+   outer face. The solid cells of that grid are merged greedily into boxes.
+5. Fixed parts are merged into the base; a part whose box shrinks below ``min_size``
+   is dropped into the base (its cavity is not cut).
+
+Every part is then a union of convex boxes that do not overlap at rest, while sliding
+or swinging (the arguments above), or when all parts are open; the validator
+(:mod:`asset_pipeline.validate`) checks exactly that in SAPIEN.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from .articulated import ArticulatedObject, Joint, Part, Primitive
+
+log = logging.getLogger(__name__)
+
+#: Gap (m) between neighbouring movable parts and between a part and its cavity.
+CLEARANCE_M = 0.004
+#: Gap in generator units when the object's metric scale is unknown (about 5 mm on a
+#: 1.2 m cabinet).
+CLEARANCE_UNITS = 0.004
+#: Base boxes thinner than this (m) are dropped (slivers between neighbouring cavities).
+SLIVER_M = 0.002
+#: A movable box thinner than this (m) after separation is no part.
+MIN_SIZE_M = 0.01
+#: Quantile trimmed off each side of a part's surface samples when fitting its box.
+TRIM = 0.03
+#: Largest opening angle of a revolute part (rad).
+MAX_SWING = math.pi / 2
+#: Fraction of its depth a drawer may slide out.
+MAX_SLIDE = 0.9
+
+
+@dataclass
+class _Movable:
+    part: Part
+    lo: np.ndarray
+    hi: np.ndarray
+    normal_axis: int  # index of the outward normal's axis
+    normal_sign: float  # +1 / -1
+    hinge_axis: int | None = None  # revolute: index of the hinge axis
+    hinge_side: float = 0.0  # revolute: +1 hinge on the box's high side along lateral_axis
+
+    @property
+    def lateral_axis(self) -> int | None:
+        if self.hinge_axis is None:
+            return None
+        return 3 - self.normal_axis - self.hinge_axis
+
+
+def _snap(v: np.ndarray) -> tuple[int, float]:
+    """Nearest frame axis of a direction: (index, sign)."""
+    i = int(np.argmax(np.abs(v)))
+    return i, 1.0 if v[i] >= 0 else -1.0
+
+
+def _unit(i: int, sign: float = 1.0) -> np.ndarray:
+    e = np.zeros(3)
+    e[i] = sign
+    return e
+
+
+def _swing_bulge(m: _Movable) -> float:
+    """How far past its box a revolute part's free edge sweeps (sqrt(t^2 + w^2) - w)."""
+    if m.hinge_axis is None:
+        return 0.0
+    t = float(m.hi[m.normal_axis] - m.lo[m.normal_axis])
+    w = float(m.hi[m.lateral_axis] - m.lo[m.lateral_axis])  # type: ignore[index]
+    return math.hypot(t, w) - w
+
+
+def robust_bounds(mesh: trimesh.Trimesh, trim: float = TRIM, samples: int = 4096) -> np.ndarray:
+    """(2, 3) box of the bulk of a mesh's surface: the ``trim`` and ``1 - trim``
+    quantiles of area-uniform surface samples per axis (a generated part's stray
+    fragments do not stretch it; a clean box loses about ``trim`` of its extent)."""
+    if len(mesh.faces) == 0:
+        return np.array(mesh.bounds, float)
+    pts, _ = trimesh.sample.sample_surface(mesh, samples, seed=0)
+    return np.quantile(pts, [trim, 1.0 - trim], axis=0)
+
+
+def _outward_sign(
+    i: int, lo: np.ndarray, hi: np.ndarray, outer: np.ndarray, prefer: float
+) -> float:
+    """The side (+1 / -1) of axis ``i`` on which the part is nearer the object's outer
+    face; ``prefer`` on a tie (within a tenth of the part's extent)."""
+    to_high, to_low = outer[1, i] - hi[i], lo[i] - outer[0, i]
+    if abs(to_high - to_low) <= 0.1 * (hi[i] - lo[i]):
+        return prefer
+    return 1.0 if to_high < to_low else -1.0
+
+
+def _classify(part: Part, outer: np.ndarray) -> _Movable:
+    j = part.joint
+    assert j is not None and j.movable
+    lo, hi = robust_bounds(part.mesh)
+    if j.type == "prismatic":
+        i, s = _snap(j.axis)
+        return _Movable(part, lo, hi, i, _outward_sign(i, lo, hi, outer, s))
+    h, _ = _snap(j.axis)
+    others = [k for k in range(3) if k != h]
+    n = min(others, key=lambda k: hi[k] - lo[k])  # the face: thinnest across the hinge
+    sign = _outward_sign(n, lo, hi, outer, 1.0)
+    lat = 3 - n - h  # the hinge goes on the box edge nearest the predicted origin
+    side = 1.0 if abs(j.origin[lat] - hi[lat]) < abs(j.origin[lat] - lo[lat]) else -1.0
+    return _Movable(part, lo, hi, n, sign, hinge_axis=h, hinge_side=side)
+
+
+def _separate(a: _Movable, b: _Movable, gap: float) -> None:
+    """Shrink two overlapping boxes apart along the best allowed axis (in place)."""
+    overlap = np.minimum(a.hi, b.hi) - np.maximum(a.lo, b.lo)
+    if np.any(overlap <= -gap):
+        return  # already apart by at least the gap along some axis
+    allowed = [k for k in range(3) if k not in (a.normal_axis, b.normal_axis)]
+    if not allowed:  # parts opening along different axes: any axis but one's normal
+        allowed = [k for k in range(3) if k != a.normal_axis]
+    k = min(allowed, key=lambda k: overlap[k])
+    first, second = (a, b) if (a.lo[k] + a.hi[k]) <= (b.lo[k] + b.hi[k]) else (b, a)
+    g = gap
+    for m, side in ((first, 1.0), (second, -1.0)):  # the free edge's bulge on that side
+        if m.lateral_axis == k and m.hinge_side != side:
+            g += _swing_bulge(m)
+    mid = (first.hi[k] + second.lo[k]) / 2
+    first.hi[k] = min(first.hi[k], mid - g / 2)
+    second.lo[k] = max(second.lo[k], mid + g / 2)
+
+
+def _base_boxes(
+    outer_lo: np.ndarray,
+    outer_hi: np.ndarray,
+    cavities: list[tuple[np.ndarray, np.ndarray]],
+    sliver: float,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Boxes covering the outer box minus the cavities (greedy merge of grid cells)."""
+    cuts = []
+    for k in range(3):
+        vals = {float(outer_lo[k]), float(outer_hi[k])}
+        for lo, hi in cavities:
+            vals.update(float(np.clip(v, outer_lo[k], outer_hi[k])) for v in (lo[k], hi[k]))
+        cuts.append(np.array(sorted(vals)))
+    shape = tuple(len(c) - 1 for c in cuts)
+    centers = [(c[:-1] + c[1:]) / 2 for c in cuts]
+    cx, cy, cz = np.meshgrid(*centers, indexing="ij")
+    pts = np.stack([cx, cy, cz], axis=-1)
+    solid = np.ones(shape, bool)
+    for lo, hi in cavities:
+        solid &= ~np.all((pts > lo) & (pts < hi), axis=-1)
+    used = np.zeros(shape, bool)
+    boxes = []
+    for i, j, k in itertools.product(*(range(s) for s in shape)):
+        if not solid[i, j, k] or used[i, j, k]:
+            continue
+        i1 = i + 1
+        while i1 < shape[0] and solid[i1, j, k] and not used[i1, j, k]:
+            i1 += 1
+        j1 = j + 1
+        while j1 < shape[1] and np.all(solid[i:i1, j1, k] & ~used[i:i1, j1, k]):
+            j1 += 1
+        k1 = k + 1
+        while k1 < shape[2] and np.all(solid[i:i1, j:j1, k1] & ~used[i:i1, j:j1, k1]):
+            k1 += 1
+        used[i:i1, j:j1, k:k1] = True
+        lo = np.array([cuts[0][i], cuts[1][j], cuts[2][k]])
+        hi = np.array([cuts[0][i1], cuts[1][j1], cuts[2][k1]])
+        if np.all(hi - lo >= sliver):
+            boxes.append((lo, hi))
+    return boxes
+
+
+def _box(lo: np.ndarray, hi: np.ndarray) -> Primitive:
+    T = np.eye(4)
+    T[:3, 3] = (lo + hi) / 2
+    return Primitive("box", hi - lo, T)
+
+
+def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> ArticulatedObject:
+    """A copy of ``obj`` whose parts have box collision geometry and consistent joints
+    (the module docstring); ``clearance`` in the object's units (default: 4 mm when
+    ``obj.scale`` is known, else ``CLEARANCE_UNITS``)."""
+    unit = 1.0 / obj.scale if obj.scale else None  # generator units per metre
+    gap = clearance if clearance is not None else (CLEARANCE_M * unit if unit else CLEARANCE_UNITS)
+    sliver = SLIVER_M * unit if unit else SLIVER_M
+    min_size = MIN_SIZE_M * unit if unit else MIN_SIZE_M
+
+    base = obj.parts[0]
+    fixed = [p for p in obj.parts[1:] if p.joint is None or not p.joint.movable]
+    movable_parts = [p for p in obj.parts[1:] if p.joint is not None and p.joint.movable]
+    all_bounds = np.array([robust_bounds(p.mesh) for p in obj.parts])
+    outer_lo, outer_hi = all_bounds[:, 0].min(0), all_bounds[:, 1].max(0)
+    # the pipeline stands the object on its meshes' lowest point: the base reaches it
+    outer_lo[2] = min(float(p.mesh.bounds[0, 2]) for p in obj.parts)
+    outer = np.array([outer_lo, outer_hi])
+    moving = [_classify(p, outer) for p in movable_parts]
+    for a, b in itertools.combinations(moving, 2):
+        _separate(a, b, gap)
+
+    kept: list[_Movable] = []
+    dropped: list[Part] = list(fixed)
+    for m in moving:
+        if np.any(m.hi - m.lo < min_size):
+            log.info(
+                "box layout: part %s shrank below %.3f; merged into the base", m.part.name, min_size
+            )
+            dropped.append(m.part)
+        else:
+            kept.append(m)
+
+    cavities = []
+    for m in kept:
+        lo, hi = m.lo - gap, m.hi + gap
+        n, s = m.normal_axis, m.normal_sign
+        if s > 0:
+            lo[n], hi[n] = m.lo[n] - gap, outer_hi[n] + 1.0
+        else:
+            lo[n], hi[n] = outer_lo[n] - 1.0, m.hi[n] + gap
+        cavities.append((lo, hi))
+    base_prims = [_box(lo, hi) for lo, hi in _base_boxes(outer_lo, outer_hi, cavities, sliver)]
+
+    base_mesh = base.mesh
+    if dropped:
+        base_mesh = trimesh.util.concatenate([base.mesh, *(p.mesh for p in dropped)])
+    parts = [
+        Part(base.name, base.semantic, base_mesh, None, base_prims, base.handle, base.material)
+    ]
+    for m in kept:
+        parts.append(_rigged(m))
+    return ArticulatedObject(
+        parts,
+        category=obj.category,
+        scale=obj.scale,
+        provenance={**obj.provenance, "collision": "box layout (generator.box_layout)"},
+    )
+
+
+def _rigged(m: _Movable) -> Part:
+    """The part with its box as collision geometry and its joint placed on the box."""
+    p, j = m.part, m.part.joint
+    assert j is not None
+    size = m.hi - m.lo
+    n, s = m.normal_axis, m.normal_sign
+    if m.hinge_axis is None:
+        axis = _unit(n, s)
+        upper = min(max(j.upper, 0.0), MAX_SLIDE * float(size[n]))
+        upper = max(upper, 0.2 * float(size[n]))
+        joint = Joint("prismatic", (m.lo + m.hi) / 2, axis, 0.0, upper, j.parent)
+    else:
+        h, lat = m.hinge_axis, m.lateral_axis
+        assert lat is not None
+        hinge_side = m.hinge_side
+        origin = (m.lo + m.hi) / 2
+        origin[n] = m.hi[n] if s > 0 else m.lo[n]
+        origin[lat] = m.hi[lat] if hinge_side > 0 else m.lo[lat]
+        free_dir = _unit(lat, -hinge_side)  # from the hinge toward the free edge
+        axis = _unit(h)
+        if np.dot(np.cross(axis, free_dir), _unit(n, s)) < 0:
+            axis = -axis
+        upper = float(np.clip(j.upper, 0.5, MAX_SWING))
+        joint = Joint("revolute", origin, axis, 0.0, upper, j.parent)
+    return Part(p.name, p.semantic, p.mesh, joint, [_box(m.lo, m.hi)], p.handle, p.material)
