@@ -16,7 +16,8 @@ meshes as the visuals:
    is thinnest (a door's face), signed the same way.
 2. Overlapping movable boxes are separated along an axis that is neither one's outward
    normal (so two drawers never stand in each other's slide path), where they overlap
-   least, split at the middle of the overlap with a gap of ``clearance``. Shrinking
+   least, split at the middle of the overlap with a gap of ``clearance`` (a box that
+   contains the other along that axis is trimmed to its larger side instead). Shrinking
    never creates a new overlap, so one pass over the pairs leaves them disjoint. A
    revolute part's free edge sweeps up to ``sqrt(t^2 + w^2) - w`` past its box
    (thickness t, width w); that is added to the gap on its free side.
@@ -156,7 +157,14 @@ def _separate(a: _Movable, b: _Movable, gap: float) -> None:
     for m, side in ((first, 1.0), (second, -1.0)):  # the free edge's bulge on that side
         if m.lateral_axis == k and m.hinge_side != side:
             g += _swing_bulge(m)
-    mid = (first.hi[k] + second.lo[k]) / 2
+    for outer, inner in ((a, b), (b, a)):  # nested along k: trim the outer box to its
+        if outer.lo[k] <= inner.lo[k] and inner.hi[k] <= outer.hi[k]:  # larger side
+            if inner.lo[k] - outer.lo[k] >= outer.hi[k] - inner.hi[k]:
+                outer.hi[k] = inner.lo[k] - g
+            else:
+                outer.lo[k] = inner.hi[k] + g
+            return
+    mid = (first.hi[k] + second.lo[k]) / 2  # the middle of the overlap
     first.hi[k] = min(first.hi[k], mid - g / 2)
     second.lo[k] = max(second.lo[k], mid + g / 2)
 

@@ -1,0 +1,197 @@
+"""Box layout of generated objects (generator.box_layout): hand-computed layouts, and a
+messy generated-like object that SAPIEN validation accepts only after the layout."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
+from generator.box_layout import MAX_SLIDE, _base_boxes, fit_box_layout, robust_bounds
+
+GAP = 0.01
+
+
+def _box(lo, hi) -> trimesh.Trimesh:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = trimesh.creation.box(hi - lo)
+    m.apply_translation((lo + hi) / 2)
+    return m
+
+
+def _u(*v: float) -> np.ndarray:
+    return np.asarray(v) / np.linalg.norm(v)
+
+
+def _bounds(p: Part) -> np.ndarray:
+    (prim,) = p.primitives
+    c, s = prim.transform[:3, 3], prim.size
+    return np.array([c - s / 2, c + s / 2])
+
+
+def _layout(parts: list[Part], gap: float = GAP) -> dict[str, Part]:
+    return {p.name: p for p in fit_box_layout(ArticulatedObject(parts), clearance=gap).parts}
+
+
+def _base(lo=(-0.3, -0.5, -0.5), hi=(0.3, 0.5, 0.5)) -> Part:
+    return Part("base", "base", _box(lo, hi))
+
+
+def test_robust_bounds_ignore_a_stray_fragment():
+    body = _box((-0.2, -0.2, -0.2), (0.2, 0.2, 0.2))
+    speck = _box((0.45, 0.45, 0.45), (0.46, 0.46, 0.46))
+    lo, hi = robust_bounds(trimesh.util.concatenate([body, speck]))
+    assert np.all(hi < 0.21) and np.all(lo > -0.21)  # the speck does not stretch it
+    assert np.all(hi > 0.17) and np.all(lo < -0.17)  # a box keeps most of its extent
+
+
+def test_overlapping_drawers_split_sideways_at_the_middle_of_the_overlap():
+    """Two front drawers overlapping by 0.1 in y (and fully in x and z): the split is along
+    y (x is their slide axis), at the middle of the overlap, with the gap between them."""
+    tilt = np.array([0.98, 0.15, 0.1])
+    a = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.0, -0.4, -0.2), (0.3, 0.05, 0.2)),
+        Joint("prismatic", [0.3, 0, 0], tilt / np.linalg.norm(tilt), 0.0, 0.5),
+    )
+    b = Part(
+        "drawer_2",
+        "drawer",
+        _box((0.0, -0.05, -0.2), (0.3, 0.4, 0.2)),
+        Joint("prismatic", [0.3, 0, 0], [1, 0, 0], 0.0, 0.1),
+    )
+    out = _layout([_base(), a, b])
+    ba, bb = _bounds(out["drawer_1"]), _bounds(out["drawer_2"])
+    # robust bounds trim a few mm; the split is at y = 0 (the overlap [-0.05, 0.05])
+    assert ba[1, 1] == pytest.approx(-GAP / 2, abs=1e-9)
+    assert bb[0, 1] == pytest.approx(GAP / 2, abs=1e-9)
+    for name in ("drawer_1", "drawer_2"):
+        j = out[name].joint
+        np.testing.assert_allclose(j.axis, [1, 0, 0])  # snapped, pointing out of the front
+        assert j.lower == 0.0
+    depth = ba[1, 0] - ba[0, 0]
+    assert out["drawer_1"].joint.upper == pytest.approx(MAX_SLIDE * depth)  # 0.5 > 0.9 depth
+    assert out["drawer_2"].joint.upper == pytest.approx(0.1)  # a shorter range is kept
+
+
+def test_door_hinge_on_the_outer_edge_nearest_the_prediction_and_swinging_outward():
+    """A front door (thin in x) with a vertical hinge predicted near its low-y edge: the
+    hinge goes on the front face at low y; a positive angle must move the free edge
+    (+y side) toward +x, so the axis is -z (z x y = -x); the range is clipped to 90 deg."""
+    door = Part(
+        "door_1",
+        "door",
+        _box((0.28, -0.4, -0.4), (0.32, 0.4, 0.4)),
+        Joint("revolute", [0.1, -0.35, 0.0], [0.05, 0.0, 1.0], -0.1, 2.5),
+    )
+    out = _layout([_base(), door])
+    j, (lo, hi) = out["door_1"].joint, _bounds(out["door_1"])
+    np.testing.assert_allclose(j.axis, [0, 0, -1])
+    assert j.origin[0] == pytest.approx(hi[0]) and j.origin[1] == pytest.approx(lo[1])
+    assert (j.lower, j.upper) == (0.0, pytest.approx(math.pi / 2))
+    free_edge = np.array([hi[0], hi[1], 0.0])
+    moved = trimesh.transform_points([free_edge], j.transform(0.3))[0]
+    assert moved[0] > free_edge[0] + 0.1
+
+
+def test_base_is_the_outer_box_minus_the_cavities():
+    """Volume by hand: outer box 0.6 x 1 x 1 minus the drawer's cavity (its box grown by
+    the gap sideways and at the back, cut out through the front face)."""
+    drawer = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.0, -0.2, -0.1), (0.3, 0.2, 0.1)),
+        Joint("prismatic", [0.3, 0, 0], [1, 0, 0], 0.0, 0.2),
+    )
+    out = _layout([_base(), drawer])
+    lo, hi = _bounds(out["drawer_1"])
+    cav = (0.3 - (lo[0] - GAP)) * (hi[1] - lo[1] + 2 * GAP) * (hi[2] - lo[2] + 2 * GAP)
+    base = out["base"].primitives
+    vol = sum(float(np.prod(p.size)) for p in base)
+    assert vol == pytest.approx(0.6 * 1.0 * 1.0 - cav, rel=1e-6)
+    for p in base:  # no base box reaches into the drawer's box grown by the gap
+        c, s = p.transform[:3, 3], p.size
+        overlap = np.minimum(c + s / 2, hi + GAP) - np.maximum(c - s / 2, lo - GAP)
+        assert np.any(overlap <= 1e-12)
+
+
+def test_base_boxes_cover_exactly_what_is_not_cut():
+    boxes = _base_boxes(
+        np.zeros(3), np.ones(3), [(np.array([0.5, -1, -1]), np.array([2, 2, 2]))], 1e-4
+    )
+    assert len(boxes) == 1
+    np.testing.assert_allclose(boxes[0][1], [0.5, 1, 1])
+
+
+def test_nested_part_keeps_its_box_and_the_outer_one_is_trimmed_to_its_larger_side():
+    outer = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.0, -0.4, -0.4), (0.3, 0.4, 0.4)),
+        Joint("prismatic", [0.3, 0, 0], [1, 0, 0], 0.0, 0.2),
+    )
+    inner = Part(
+        "drawer_2",
+        "drawer",
+        _box((0.0, -0.39, 0.1), (0.3, 0.39, 0.2)),
+        Joint("prismatic", [0.3, 0, 0], [1, 0, 0], 0.0, 0.2),
+    )
+    out = _layout([_base(), outer, inner])
+    bo, bi = _bounds(out["drawer_1"]), _bounds(out["drawer_2"])
+    # z overlaps least (the inner part's 0.1); below it 0.5 is left, above it 0.2
+    assert bo[1, 2] == pytest.approx(bi[0, 2] - GAP)
+    assert bi[1, 2] - bi[0, 2] > 0.09
+
+
+def test_part_thinner_than_the_minimum_is_merged_into_the_base():
+    flap = Part(
+        "door_1",
+        "door",
+        _box((0.3, -0.2, -0.2), (0.304, 0.2, 0.2)),
+        Joint("revolute", [0.3, -0.2, 0], [0, 0, 1], 0.0, 1.0),
+    )
+    out = fit_box_layout(ArticulatedObject([_base(), flap]), clearance=GAP)
+    assert [p.name for p in out.parts] == ["base"]
+    assert len(out.parts[0].mesh.vertices) == 16  # the dropped part's mesh joins the base
+
+
+@pytest.mark.slow
+def test_messy_generated_object_validates_in_sapien_after_the_layout(tmp_path):
+    """Parts like a generator's: drawers overlapping each other and the base, a tilted
+    slide axis, a door hinge inside its panel and a range past 90 degrees. The layout
+    makes it pass every SAPIEN check (rest, sweeps, all open, drives, free base)."""
+    from asset_pipeline.build import build_asset
+    from asset_pipeline.validate import validate_asset
+
+    base = Part("base", "base", _box((-0.25, -0.45, -0.5), (0.25, 0.45, 0.5)))
+    d1 = Part(
+        "drawer_1",
+        "drawer",
+        _box((-0.15, -0.43, 0.15), (0.27, 0.1, 0.45)),
+        Joint("prismatic", [0.27, 0, 0.3], _u(0.97, 0.2, 0.1), 0.0, 0.6),
+    )
+    d2 = Part(
+        "drawer_2",
+        "drawer",
+        _box((-0.1, -0.05, 0.1), (0.26, 0.43, 0.46)),
+        Joint("prismatic", [0.27, 0, 0.3], _u(1.0, -0.1, 0.0), 0.0, 0.3),
+    )
+    door = Part(
+        "door_3",
+        "door",
+        _box((0.22, -0.43, -0.45), (0.28, 0.43, 0.12)),
+        Joint("revolute", [0.25, 0.2, 0.0], _u(0.0, 0.1, 1.0), 0.0, 2.4),
+    )
+    obj = ArticulatedObject([base, d1, d2, door], category="cabinet", scale=1.0)
+    obj.validate("messy")  # a valid object model; only its physics is broken
+    out = fit_box_layout(obj)
+    d = save_bundle(out, tmp_path / "messy")
+    build_asset(d, height=1.0)
+    report = validate_asset(d, preview=False, repair=False)
+    assert report.ok, report.reasons
+    movable = {p.name for p in out.parts if p.joint is not None}
+    assert movable == {"drawer_1", "drawer_2", "door_3"}
