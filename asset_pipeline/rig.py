@@ -12,7 +12,8 @@ link-frame geometry = object-frame geometry - joint origin.
 
 Physics defaults (:class:`PhysicsDefaults`, overridable per build)
 -------------------------------------------------------------------
-Mass: a shell model per ``Part.material`` (:class:`MaterialModel`). Real furniture
+Mass: a shell model per ``Part.material`` (:class:`MaterialModel`) of the part's solid
+(:func:`part_solid`: its primitives when it has them, else its mesh). Real furniture
 and appliance parts are boards, sheet-metal skins around insulation, moulded
 plastic and glass panes, not solid blocks of their material; a solid model made a
 procedural refrigerator door 47 kg (real: 8-15 kg), too heavy for any gripper
@@ -75,7 +76,7 @@ import numpy as np
 import trimesh
 from lxml import etree
 
-from generator.articulated import ArticulatedObject
+from generator.articulated import ArticulatedObject, Part
 
 log = logging.getLogger(__name__)
 
@@ -333,6 +334,15 @@ def link_origin(obj: ArticulatedObject, part_name: str) -> np.ndarray:
     return np.zeros(3) if p.joint is None else np.asarray(p.joint.origin, dtype=float)
 
 
+def part_solid(part: Part) -> trimesh.Trimesh:
+    """The solid a part's mass comes from: its primitives when it has them (a procedural
+    part's exact solids, or a generated part's layout box: what the simulator collides
+    with), else its watertight mesh."""
+    if not part.primitives:
+        return part.mesh
+    return trimesh.util.concatenate([q.to_mesh() for q in part.primitives])
+
+
 def build_rig(
     obj: ArticulatedObject,
     piece_counts: Mapping[str, int],
@@ -348,7 +358,7 @@ def build_rig(
     order = [obj.base] + [p for p in obj.parts if not p.is_base]
     for p in order:
         origin = link_origin(obj, p.name)
-        mp = mass_properties(p.mesh, physics.material(p.material), physics.min_mass)
+        mp = mass_properties(part_solid(p), physics.material(p.material), physics.min_mass)
         mp.com = mp.com - origin
         links.append(
             RigLink(

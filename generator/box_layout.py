@@ -8,29 +8,34 @@ over in SAPIEN. :func:`fit_box_layout` gives every part an exact box geometry fo
 collision (``Part.primitives``) and joints consistent with it, keeping the generated
 meshes as the visuals:
 
-1. Each movable part gets the axis-aligned box of its mesh. Its joint axis snaps to the
-   nearest of the frame's axes (furniture and appliances are axis-aligned in the object
-   frame: front +x, z up). A part's *outward normal* is the side it opens toward: a
-   prismatic part's axis (its sign turned to point from the object's centre toward the
-   part); for a revolute part, the axis perpendicular to the hinge along which its box
-   is thinnest (a door's face), signed the same way.
-2. Overlapping movable boxes are separated along an axis that is neither one's outward
-   normal (so two drawers never stand in each other's slide path), where they overlap
-   least, split at the middle of the overlap with a gap of ``clearance`` (a box that
-   contains the other along that axis is trimmed to its larger side instead). Shrinking
-   never creates a new overlap, so one pass over the pairs leaves them disjoint. A
-   revolute part's free edge sweeps up to ``sqrt(t^2 + w^2) - w`` past its box
-   (thickness t, width w); that is added to the gap on its free side.
+1. Each movable part gets the axis-aligned box of the bulk of its mesh
+   (:func:`robust_bounds`), lifted off the floor by ``clearance``. Its joint axis snaps
+   to the nearest of the frame's axes (furniture and appliances are axis-aligned in the
+   object frame: front +x, z up). A part's *outward normal* is the side it opens toward:
+   for a prismatic part its axis, for a revolute part the axis across the hinge along
+   which its box is thinnest (a door's face); signed toward the object's outer face the
+   part is nearer to (the predicted sign, or +, on a tie).
+2. Two movable parts whose sweeps over their ranges meet (a box holding each part over
+   its range: a drawer slid out by its depth, a door's width out of its face) are
+   shrunk apart along an axis that is neither one's outward normal (so no part stands
+   in another's path), where their boxes overlap least: split at the middle of the
+   overlap with a gap of ``clearance``, or, when one box contains the other along that
+   axis, the outer one trimmed to its larger side. A revolute part's free edge sweeps
+   ``sqrt(t^2 + w^2) - w`` past its box (thickness t, width w); that is added to the
+   gap on its free side. Shrinking a box never grows a sweep, so one pass over the
+   pairs leaves every pair apart.
 3. A revolute hinge goes on the box's outer face, on the lateral edge nearest the
    predicted origin (the paper projects origins onto the box surface; this picks the
    edge), its axis signed so a positive angle swings the free edge outward; the range is
    [0, min(upper, pi/2)] (past 90 degrees a door sweeps in front of its neighbours). A
    prismatic range is [0, min(upper, 0.9 x depth)]: an open drawer stays engaged.
 4. The base is the bounding box of all parts minus one cavity per movable part: its
-   box grown by ``clearance`` sideways and from its inner face out through the base's
-   outer face. The solid cells of that grid are merged greedily into boxes.
-5. Fixed parts are merged into the base; a part whose box shrinks below ``min_size``
-   is dropped into the base (its cavity is not cut).
+   box grown by ``clearance`` (and a free edge's bulge) sideways and from its inner
+   face out through the base's outer face. The solid cells of that grid are merged
+   greedily into boxes.
+5. Fixed parts are merged into the base, and so is a movable part whose box ends up
+   thinner than ``MIN_SIZE_M`` or with a face narrower than ``MIN_FACE_M`` (nothing a
+   gripper could open; its cavity is not cut).
 
 Every part is then a union of convex boxes that do not overlap at rest, while sliding
 or swinging (the arguments above), or when all parts are open; the validator
@@ -58,8 +63,10 @@ CLEARANCE_M = 0.004
 CLEARANCE_UNITS = 0.004
 #: Base boxes thinner than this (m) are dropped (slivers between neighbouring cavities).
 SLIVER_M = 0.002
-#: A movable box thinner than this (m) after separation is no part.
+#: A movable box thinner than this (m) after separation is no part...
 MIN_SIZE_M = 0.01
+#: ... nor is one whose face (across its outward normal) is narrower than this (m).
+MIN_FACE_M = 0.05
 #: Quantile trimmed off each side of a part's surface samples when fitting its box.
 TRIM = 0.03
 #: Largest opening angle of a revolute part (rad).
@@ -143,11 +150,35 @@ def _classify(part: Part, outer: np.ndarray) -> _Movable:
     return _Movable(part, lo, hi, n, sign, hinge_axis=h, hinge_side=side)
 
 
+def _swept(m: _Movable) -> tuple[np.ndarray, np.ndarray]:
+    """A box holding the part over its whole range: a prismatic part slides out by at
+    most its depth; a revolute part reaches its width out of its face and its free edge
+    bulges sideways."""
+    lo, hi = m.lo.copy(), m.hi.copy()
+    n = m.normal_axis
+    if m.hinge_axis is None:
+        reach = hi[n] - lo[n]
+    else:
+        lat = m.lateral_axis
+        assert lat is not None
+        reach = hi[lat] - lo[lat]
+        if m.hinge_side > 0:
+            lo[lat] -= _swing_bulge(m)
+        else:
+            hi[lat] += _swing_bulge(m)
+    if m.normal_sign > 0:
+        hi[n] += reach
+    else:
+        lo[n] -= reach
+    return lo, hi
+
+
 def _separate(a: _Movable, b: _Movable, gap: float) -> None:
-    """Shrink two overlapping boxes apart along the best allowed axis (in place)."""
+    """Shrink two boxes whose sweeps meet apart along the best allowed axis (in place)."""
+    (alo, ahi), (blo, bhi) = _swept(a), _swept(b)
+    if np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= -gap):
+        return  # their sweeps stay apart by at least the gap along some axis
     overlap = np.minimum(a.hi, b.hi) - np.maximum(a.lo, b.lo)
-    if np.any(overlap <= -gap):
-        return  # already apart by at least the gap along some axis
     allowed = [k for k in range(3) if k not in (a.normal_axis, b.normal_axis)]
     if not allowed:  # parts opening along different axes: any axis but one's normal
         allowed = [k for k in range(3) if k != a.normal_axis]
@@ -225,6 +256,7 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     gap = clearance if clearance is not None else (CLEARANCE_M * unit if unit else CLEARANCE_UNITS)
     sliver = SLIVER_M * unit if unit else SLIVER_M
     min_size = MIN_SIZE_M * unit if unit else MIN_SIZE_M
+    min_face = MIN_FACE_M * unit if unit else MIN_FACE_M
 
     base = obj.parts[0]
     fixed = [p for p in obj.parts[1:] if p.joint is None or not p.joint.movable]
@@ -235,16 +267,17 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     outer_lo[2] = min(float(p.mesh.bounds[0, 2]) for p in obj.parts)
     outer = np.array([outer_lo, outer_hi])
     moving = [_classify(p, outer) for p in movable_parts]
+    for m in moving:  # a moving part does not drag on the floor
+        m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
     for a, b in itertools.combinations(moving, 2):
         _separate(a, b, gap)
 
     kept: list[_Movable] = []
     dropped: list[Part] = list(fixed)
     for m in moving:
-        if np.any(m.hi - m.lo < min_size):
-            log.info(
-                "box layout: part %s shrank below %.3f; merged into the base", m.part.name, min_size
-            )
+        size = m.hi - m.lo
+        if np.any(size < min_size) or np.any(np.delete(size, m.normal_axis) < min_face):
+            log.info("box layout: part %s is too small %s; merged into the base", m.part.name, size)
             dropped.append(m.part)
         else:
             kept.append(m)
@@ -252,6 +285,12 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     cavities = []
     for m in kept:
         lo, hi = m.lo - gap, m.hi + gap
+        if m.hinge_axis is not None:  # room for the free edge's bulge
+            lat = m.lateral_axis
+            if m.hinge_side > 0:
+                lo[lat] -= _swing_bulge(m)
+            else:
+                hi[lat] += _swing_bulge(m)
         n, s = m.normal_axis, m.normal_sign
         if s > 0:
             lo[n], hi[n] = m.lo[n] - gap, outer_hi[n] + 1.0

@@ -147,16 +147,30 @@ def test_nested_part_keeps_its_box_and_the_outer_one_is_trimmed_to_its_larger_si
     assert bi[1, 2] - bi[0, 2] > 0.09
 
 
-def test_part_thinner_than_the_minimum_is_merged_into_the_base():
+def test_parts_too_thin_or_too_small_to_open_are_merged_into_the_base():
+    """scale = 1: a 4 mm flap (< MIN_SIZE_M) and a 3 x 3 cm knob-sized door (face <
+    MIN_FACE_M) are no parts; their meshes join the base's."""
     flap = Part(
         "door_1",
         "door",
         _box((0.3, -0.2, -0.2), (0.304, 0.2, 0.2)),
         Joint("revolute", [0.3, -0.2, 0], [0, 0, 1], 0.0, 1.0),
     )
-    out = fit_box_layout(ArticulatedObject([_base(), flap]), clearance=GAP)
-    assert [p.name for p in out.parts] == ["base"]
-    assert len(out.parts[0].mesh.vertices) == 16  # the dropped part's mesh joins the base
+    knob = Part(
+        "door_2",
+        "door",
+        _box((0.28, 0.3, 0.3), (0.3, 0.33, 0.33)),
+        Joint("revolute", [0.3, 0.3, 0.3], [0, 0, 1], 0.0, 1.0),
+    )
+    keep = Part(
+        "drawer_3",
+        "drawer",
+        _box((0.0, -0.2, -0.45), (0.3, 0.2, -0.3)),
+        Joint("prismatic", [0.3, 0, -0.4], [1, 0, 0], 0.0, 0.2),
+    )
+    out = fit_box_layout(ArticulatedObject([_base(), flap, knob, keep], scale=1.0), clearance=GAP)
+    assert [p.name for p in out.parts] == ["base", "drawer_3"]
+    assert len(out.parts[0].mesh.vertices) == 24  # the dropped parts' meshes join the base
 
 
 @pytest.mark.slow

@@ -156,6 +156,28 @@ def test_build_rig_frames_masses_and_files():
     np.testing.assert_allclose(j["joint_door_0"].origin, [0.27, -0.25, 0.6])
 
 
+def test_mass_comes_from_the_primitives_when_a_part_has_them():
+    """A generated part: a small fragment of mesh, a layout box as its collision solid.
+    Its mass is the box's (wood: a 19 mm skin around air), not the fragment's."""
+    from generator.articulated import Primitive
+
+    obj = _object()
+    door = obj.part("door_0")
+    fragment = trimesh.creation.box([0.02, 0.05, 0.05])
+    fragment.apply_translation([0.26, -0.2, 0.6])
+    T = np.eye(4)
+    T[:3, 3] = [0.24, 0, 0.6]
+    door.mesh = fragment
+    door.primitives = [Primitive("box", [0.06, 0.5, 0.3], T)]
+    rig = build_rig(obj, {"base": 1, "drawer_0": 1, "door_0": 1}, "cab")
+    area = 2 * (0.06 * 0.5 + 0.06 * 0.3 + 0.5 * 0.3)
+    mass = rig.link("door_0").mass
+    assert mass.mass == pytest.approx(
+        MATERIALS["wood"].density * MATERIALS["wood"].shell_thickness * area
+    )
+    np.testing.assert_allclose(mass.com, np.array([0.24, 0, 0.6]) - [0.27, -0.25, 0.6], atol=1e-7)
+
+
 def test_urdf_text_is_valid_and_complete():
     import yourdfpy
 
