@@ -18,7 +18,8 @@ meshes as the visuals:
 2. Two movable parts whose sweeps over their ranges meet (a box holding each part over
    its range: a drawer slid out by its depth, a door's width out of its face) are
    shrunk apart along an axis that is neither one's outward normal (so no part stands
-   in another's path), where their boxes overlap least: split at the middle of the
+   in another's path), where their boxes overlap least among the axes that leave both
+   faces at least ``MIN_FACE_M`` wide (else where the narrower stays widest): split at the middle of the
    overlap with a gap of ``clearance``, or, when one box contains the other along that
    axis, the outer one trimmed to its larger side. A revolute part's free edge sweeps
    ``sqrt(t^2 + w^2) - w`` past its box (thickness t, width w); that is added to the
@@ -173,31 +174,46 @@ def _swept(m: _Movable) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _separate(a: _Movable, b: _Movable, gap: float) -> None:
-    """Shrink two boxes whose sweeps meet apart along the best allowed axis (in place)."""
-    (alo, ahi), (blo, bhi) = _swept(a), _swept(b)
-    if np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= -gap):
-        return  # their sweeps stay apart by at least the gap along some axis
-    overlap = np.minimum(a.hi, b.hi) - np.maximum(a.lo, b.lo)
-    allowed = [k for k in range(3) if k not in (a.normal_axis, b.normal_axis)]
-    if not allowed:  # parts opening along different axes: any axis but one's normal
-        allowed = [k for k in range(3) if k != a.normal_axis]
-    k = min(allowed, key=lambda k: overlap[k])
+def _split(a: _Movable, b: _Movable, k: int, gap: float) -> tuple[tuple[float, float], ...]:
+    """New extents along axis ``k`` of ``a`` and ``b`` that put ``gap`` (plus a free
+    edge's bulge) between them: the outer box trimmed to its larger side when one
+    contains the other along ``k``, else a cut at the middle of the overlap."""
     first, second = (a, b) if (a.lo[k] + a.hi[k]) <= (b.lo[k] + b.hi[k]) else (b, a)
     g = gap
     for m, side in ((first, 1.0), (second, -1.0)):  # the free edge's bulge on that side
         if m.lateral_axis == k and m.hinge_side != side:
             g += _swing_bulge(m)
-    for outer, inner in ((a, b), (b, a)):  # nested along k: trim the outer box to its
-        if outer.lo[k] <= inner.lo[k] and inner.hi[k] <= outer.hi[k]:  # larger side
+    new = {id(m): (float(m.lo[k]), float(m.hi[k])) for m in (a, b)}
+    for outer, inner in ((a, b), (b, a)):
+        if outer.lo[k] <= inner.lo[k] and inner.hi[k] <= outer.hi[k]:
             if inner.lo[k] - outer.lo[k] >= outer.hi[k] - inner.hi[k]:
-                outer.hi[k] = inner.lo[k] - g
+                new[id(outer)] = (float(outer.lo[k]), float(inner.lo[k] - g))
             else:
-                outer.lo[k] = inner.hi[k] + g
-            return
+                new[id(outer)] = (float(inner.hi[k] + g), float(outer.hi[k]))
+            return new[id(a)], new[id(b)]
     mid = (first.hi[k] + second.lo[k]) / 2  # the middle of the overlap
-    first.hi[k] = min(first.hi[k], mid - g / 2)
-    second.lo[k] = max(second.lo[k], mid + g / 2)
+    new[id(first)] = (float(first.lo[k]), float(min(first.hi[k], mid - g / 2)))
+    new[id(second)] = (float(max(second.lo[k], mid + g / 2)), float(second.hi[k]))
+    return new[id(a)], new[id(b)]
+
+
+def _separate(a: _Movable, b: _Movable, gap: float, min_face: float) -> None:
+    """Shrink two boxes whose sweeps meet apart (in place), along an axis that is neither
+    one's outward normal: where they overlap least among the axes that leave both faces
+    at least ``min_face`` wide, else where the narrower one stays widest."""
+    (alo, ahi), (blo, bhi) = _swept(a), _swept(b)
+    if np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= -gap):
+        return  # their sweeps stay apart by at least the gap along some axis
+    overlap = np.minimum(a.hi, b.hi) - np.maximum(a.lo, b.lo)
+    allowed = [k for k in range(3) if k not in (a.normal_axis, b.normal_axis)]
+    splits = {k: _split(a, b, k, gap) for k in allowed}
+    narrowest = {k: min(hi - lo for lo, hi in splits[k]) for k in allowed}
+    feasible = [k for k in allowed if narrowest[k] >= min_face]
+    if feasible:
+        k = min(feasible, key=lambda k: overlap[k])
+    else:
+        k = max(allowed, key=lambda k: narrowest[k])
+    (a.lo[k], a.hi[k]), (b.lo[k], b.hi[k]) = splits[k]
 
 
 def _base_boxes(
@@ -270,7 +286,7 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     for m in moving:  # a moving part does not drag on the floor
         m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
     for a, b in itertools.combinations(moving, 2):
-        _separate(a, b, gap)
+        _separate(a, b, gap, min_face)
 
     kept: list[_Movable] = []
     dropped: list[Part] = list(fixed)
