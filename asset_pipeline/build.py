@@ -44,7 +44,15 @@ from .mesh import (
     to_metric,
     watertight_object,
 )
-from .rig import PhysicsDefaults, Rig, build_rig, link_origin, mjcf_string, urdf_string
+from .rig import (
+    PhysicsDefaults,
+    Rig,
+    build_rig,
+    link_origin,
+    mjcf_string,
+    part_solid,
+    urdf_string,
+)
 
 log = logging.getLogger(__name__)
 
@@ -103,13 +111,14 @@ def prepare_object(
 def fallback_handle(part: Part) -> Handle:
     """Grasp point of a movable part without a modelled handle (object frame, kind ``none``).
 
-    The centre of the part's front face (the +x side of its bounding box), moved in
+    The centre of the part's front face (the +x side of the bounding box of its solid,
+    :func:`asset_pipeline.rig.part_solid`: what it collides with), moved in
     the face plane away from the hinge line toward the opposite edge, stopping
     ``min(HANDLE_INSET_FRACTION * extent, HANDLE_INSET_MAX)`` short of it. Prismatic
     parts keep the face centre. The handle axis is the hinge axis for revolute
     parts (a bar parallel to the hinge) and +y otherwise.
     """
-    lo, hi = part.mesh.bounds
+    lo, hi = part_solid(part).bounds
     centre = np.array([hi[0], 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])])
     j = part.joint
     if j is None or j.type != "revolute":

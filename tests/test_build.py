@@ -328,3 +328,20 @@ def test_fallback_handle_prismatic_is_front_centre():
     h = fallback_handle(part)
     assert h.kind == "none"
     np.testing.assert_allclose(h.position, [0.25, 0.0, 0.205], atol=1e-6)
+
+
+def test_fallback_handle_uses_the_primitives_of_a_generated_part():
+    """A generated part's mesh can reach past its layout box (stray fragments); the grasp
+    point is on the box's front face, where the gripper meets the collision solid."""
+    from generator.articulated import Primitive
+
+    part = design_cabinet().part("drawer_0")
+    part.handle = None
+    lo, hi = (np.array(b) for b in part.mesh.bounds)
+    T = np.eye(4)
+    T[:3, 3] = (lo + hi) / 2 - [0.05, 0, 0]
+    part.primitives = [Primitive("box", hi - lo, T)]
+    h = fallback_handle(part)
+    np.testing.assert_allclose(
+        h.position, [hi[0] - 0.05, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2], atol=1e-6
+    )
