@@ -57,6 +57,12 @@ prismatic  2.0      0.1       100     1.0 m/s
 revolute   0.5      0.02      100     2.0 rad/s
 =========  =======  ========  ======  ==============
 
+Damping is capped at ``I / min_damping_time`` (0.01 s), ``I`` the mass (prismatic) or
+the moment of inertia about the hinge (revolute): a part that small (a 5 cm flap of a
+generated object, I ~ 5e-5 kg m^2) would otherwise be damped a thousand times faster than
+it moves, and no drive could swing it within seconds. Procedural parts weigh far more
+(a 1 kg microwave door: I ~ 0.03 kg m^2, cap 3 N m s/rad), so the table holds for them.
+
 URDF reads ``friction`` as a force (N) or torque (N m), and so does MuJoCo's
 ``frictionloss``; SAPIEN hands it to PhysX as a *coefficient* on the joint's
 constraint load, so in SAPIEN a heavy or cantilevered part (a door hanging off its
@@ -70,7 +76,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
@@ -124,6 +130,8 @@ class PhysicsDefaults:
     revolute: JointPhysics = JointPhysics(damping=0.5, friction=0.02, effort=100.0, velocity=2.0)
     #: Lower bound on a link's mass (kg); lighter links are scaled up (inertia too).
     min_mass: float = 0.05
+    #: Joint damping is capped at (inertia about the joint) / this (s): see the docstring.
+    min_damping_time: float = 0.01
 
     def material(self, material: str) -> MaterialModel:
         """The :class:`MaterialModel` of ``material`` (the default material's if unknown)."""
@@ -334,6 +342,15 @@ def link_origin(obj: ArticulatedObject, part_name: str) -> np.ndarray:
     return np.zeros(3) if p.joint is None else np.asarray(p.joint.origin, dtype=float)
 
 
+def joint_inertia(mp: MassProperties, joint_type: str, axis: np.ndarray) -> float:
+    """What a joint's damping acts against: the mass (prismatic) or the moment of inertia
+    about the joint axis (revolute; ``mp.com`` relative to a point on the axis)."""
+    if joint_type != "revolute":
+        return float(mp.mass)
+    off = mp.com - axis * float(mp.com @ axis)
+    return float(axis @ mp.inertia @ axis + mp.mass * (off @ off))
+
+
 def part_solid(part: Part) -> trimesh.Trimesh:
     """The solid a part's mass comes from: its primitives when it has them (a procedural
     part's exact solids, or a generated part's layout box: what the simulator collides
@@ -376,6 +393,11 @@ def build_rig(
         if p.joint is not None:
             j = p.joint
             axis = np.asarray(j.axis, dtype=float)
+            axis = axis / np.linalg.norm(axis)
+            joint_physics = physics.joint(j.type)
+            cap = joint_inertia(mp, j.type, axis) / physics.min_damping_time
+            if joint_physics.damping > cap:  # a small part: its damping time >= the floor
+                joint_physics = replace(joint_physics, damping=cap)
             joints.append(
                 RigJoint(
                     name=f"joint_{p.name}",
@@ -383,10 +405,10 @@ def build_rig(
                     parent=j.parent,
                     child=p.name,
                     origin=origin - link_origin(obj, j.parent),
-                    axis=axis / np.linalg.norm(axis),
+                    axis=axis,
                     lower=j.lower,
                     upper=j.upper,
-                    physics=physics.joint(j.type),
+                    physics=joint_physics,
                 )
             )
     return Rig(name=name, links=links, joints=joints)

@@ -9,12 +9,13 @@ collision (``Part.primitives``) and joints consistent with it, keeping the gener
 meshes as the visuals:
 
 1. Each movable part gets the axis-aligned box of the bulk of its mesh
-   (:func:`robust_bounds`), lifted off the floor by ``clearance``. Its joint axis snaps
+   (:func:`robust_bounds`), lifted off the floor by ``clearance`` and cut off
+   ``BACK_WALL`` of the object's depth short of its back. Its joint axis snaps
    to the nearest of the frame's axes (furniture and appliances are axis-aligned in the
    object frame: front +x, z up). A part's *outward normal* is the side it opens toward:
    for a prismatic part its axis, for a revolute part the axis across the hinge along
    which its box is thinnest (a door's face); signed toward the object's outer face the
-   part is nearer to (the predicted sign, or +, on a tie).
+   part is clearly nearer to (else +: fronts face +x, lids open upward).
 2. Two movable parts whose sweeps over their ranges meet (a box holding each part over
    its range: a drawer slid out by its depth, a door's width out of its face) are
    shrunk apart along an axis that is neither one's outward normal (so no part stands
@@ -70,6 +71,10 @@ MIN_SIZE_M = 0.01
 MIN_FACE_M = 0.05
 #: Quantile trimmed off each side of a part's surface samples when fitting its box.
 TRIM = 0.03
+#: The base keeps a back wall of this fraction of its depth behind every moving part
+#: (a drawer's mesh often spans the whole depth; with the wall the base's mass sits
+#: behind the drawers, as in real furniture, and opening moves them away from it).
+BACK_WALL = 0.1
 #: Largest opening angle of a revolute part (rad).
 MAX_SWING = math.pi / 2
 #: Fraction of its depth a drawer may slide out.
@@ -124,14 +129,14 @@ def robust_bounds(mesh: trimesh.Trimesh, trim: float = TRIM, samples: int = 4096
     return np.quantile(pts, [trim, 1.0 - trim], axis=0)
 
 
-def _outward_sign(
-    i: int, lo: np.ndarray, hi: np.ndarray, outer: np.ndarray, prefer: float
-) -> float:
+def _outward_sign(i: int, lo: np.ndarray, hi: np.ndarray, outer: np.ndarray) -> float:
     """The side (+1 / -1) of axis ``i`` on which the part is nearer the object's outer
-    face; ``prefer`` on a tie (within a tenth of the part's extent)."""
+    face by more than a quarter of the object's extent; else +1: by the frame
+    convention fronts face +x and lids open upward, +z (a generated drawer often spans
+    the whole depth, and a handle or a plinth moves the front face)."""
     to_high, to_low = outer[1, i] - hi[i], lo[i] - outer[0, i]
-    if abs(to_high - to_low) <= 0.1 * (hi[i] - lo[i]):
-        return prefer
+    if abs(to_high - to_low) <= 0.25 * (outer[1, i] - outer[0, i]):
+        return 1.0
     return 1.0 if to_high < to_low else -1.0
 
 
@@ -140,12 +145,12 @@ def _classify(part: Part, outer: np.ndarray) -> _Movable:
     assert j is not None and j.movable
     lo, hi = robust_bounds(part.mesh)
     if j.type == "prismatic":
-        i, s = _snap(j.axis)
-        return _Movable(part, lo, hi, i, _outward_sign(i, lo, hi, outer, s))
+        i, _ = _snap(j.axis)
+        return _Movable(part, lo, hi, i, _outward_sign(i, lo, hi, outer))
     h, _ = _snap(j.axis)
     others = [k for k in range(3) if k != h]
     n = min(others, key=lambda k: hi[k] - lo[k])  # the face: thinnest across the hinge
-    sign = _outward_sign(n, lo, hi, outer, 1.0)
+    sign = _outward_sign(n, lo, hi, outer)
     lat = 3 - n - h  # the hinge goes on the box edge nearest the predicted origin
     side = 1.0 if abs(j.origin[lat] - hi[lat]) < abs(j.origin[lat] - lo[lat]) else -1.0
     return _Movable(part, lo, hi, n, sign, hinge_axis=h, hinge_side=side)
@@ -283,8 +288,14 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     outer_lo[2] = min(float(p.mesh.bounds[0, 2]) for p in obj.parts)
     outer = np.array([outer_lo, outer_hi])
     moving = [_classify(p, outer) for p in movable_parts]
-    for m in moving:  # a moving part does not drag on the floor
+    for m in moving:  # a moving part does not drag on the floor, the base keeps a back
         m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
+        n = m.normal_axis
+        wall = BACK_WALL * (outer_hi[n] - outer_lo[n])
+        if m.normal_sign > 0:
+            m.lo[n] = max(m.lo[n], outer_lo[n] + wall)
+        else:
+            m.hi[n] = min(m.hi[n], outer_hi[n] - wall)
     for a, b in itertools.combinations(moving, 2):
         _separate(a, b, gap, min_face)
 

@@ -178,6 +178,27 @@ def test_mass_comes_from_the_primitives_when_a_part_has_them():
     np.testing.assert_allclose(mass.com, np.array([0.24, 0, 0.6]) - [0.27, -0.25, 0.6], atol=1e-7)
 
 
+def test_damping_of_a_tiny_part_is_capped_by_its_inertia():
+    """A 5 cm wooden flap on a vertical hinge: its moment of inertia about the hinge,
+    by hand, over min_damping_time; the ordinary door and the drawer keep the defaults."""
+    obj = _object()
+    flap = trimesh.creation.box([0.01, 0.05, 0.05])
+    flap.apply_translation([0.265, 0.3, 0.6])
+    obj.parts.append(
+        Part(
+            "door_1", "door", flap, joint=Joint("revolute", [0.27, 0.275, 0.6], [0, 0, 1], 0.0, 1.5)
+        )
+    )
+    rig = build_rig(obj, {"base": 1, "drawer_0": 1, "door_0": 1, "door_1": 1}, "cab")
+    j = {x.name: x for x in rig.joints}
+    m = DENSITIES["wood"] * 0.01 * 0.05 * 0.05  # thinner than two skins: solid
+    m = max(m, PhysicsDefaults().min_mass)
+    izz = m * (0.01**2 + 0.05**2) / 12 + m * (0.005**2 + 0.025**2)  # + parallel axis
+    assert j["joint_door_1"].physics.damping == pytest.approx(izz / 0.01, rel=1e-6)
+    assert j["joint_door_0"].physics == PhysicsDefaults().revolute
+    assert j["joint_drawer_0"].physics == PhysicsDefaults().prismatic
+
+
 def test_urdf_text_is_valid_and_complete():
     import yourdfpy
 
