@@ -9,8 +9,9 @@ collision (``Part.primitives``) and joints consistent with it, keeping the gener
 meshes as the visuals:
 
 1. Each movable part gets the axis-aligned box of the bulk of its mesh
-   (:func:`robust_bounds`), lifted off the floor by ``clearance`` and cut off
-   ``BACK_WALL`` of the object's depth short of its back. Its joint axis snaps
+   (:func:`robust_bounds`), lifted off the floor by ``clearance``, cut off
+   ``BACK_WALL`` of the object's depth short of its back and, for a drawer, brought
+   flush with the object's face when recessed by up to ``FLUSH`` of the depth. Its joint axis snaps
    to the nearest of the frame's axes (furniture and appliances are axis-aligned in the
    object frame: front +x, z up). A part's *outward normal* is the side it opens toward:
    for a prismatic part its axis, for a revolute part the axis across the hinge along
@@ -75,6 +76,10 @@ TRIM = 0.03
 #: (a drawer's mesh often spans the whole depth; with the wall the base's mass sits
 #: behind the drawers, as in real furniture, and opening moves them away from it).
 BACK_WALL = 0.1
+#: A drawer's front recessed by up to this fraction of the depth is brought flush with
+#: the object's face (a handle or a worktop's overhang sets that face on generated
+#: objects; a drawer centred in the depth would not visibly move away from the base).
+FLUSH = 0.5
 #: Largest opening angle of a revolute part (rad).
 MAX_SWING = math.pi / 2
 #: Fraction of its depth a drawer may slide out.
@@ -291,11 +296,16 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     for m in moving:  # a moving part does not drag on the floor, the base keeps a back
         m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
         n = m.normal_axis
-        wall = BACK_WALL * (outer_hi[n] - outer_lo[n])
+        depth = outer_hi[n] - outer_lo[n]
+        flush = m.hinge_axis is None  # a drawer's front: flush with the object's face
         if m.normal_sign > 0:
-            m.lo[n] = max(m.lo[n], outer_lo[n] + wall)
+            m.lo[n] = max(m.lo[n], outer_lo[n] + BACK_WALL * depth)
+            if flush and outer_hi[n] - m.hi[n] <= FLUSH * depth:
+                m.hi[n] = outer_hi[n]
         else:
-            m.hi[n] = min(m.hi[n], outer_hi[n] - wall)
+            m.hi[n] = min(m.hi[n], outer_hi[n] - BACK_WALL * depth)
+            if flush and m.lo[n] - outer_lo[n] <= FLUSH * depth:
+                m.lo[n] = outer_lo[n]
     for a, b in itertools.combinations(moving, 2):
         _separate(a, b, gap, min_face)
 
