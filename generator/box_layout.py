@@ -56,6 +56,7 @@ import numpy as np
 import trimesh
 
 from .articulated import ArticulatedObject, Joint, Part, Primitive
+from .procedural.blocks import HandleStyle, slab_with_handle
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +81,10 @@ BACK_WALL = 0.1
 #: the object's face (a handle or a worktop's overhang sets that face on generated
 #: objects; a drawer centred in the depth would not visibly move away from the base).
 FLUSH = 0.5
+#: A bar handle on every part without one (m): length, radius, standoff of the bar's
+#: axis from the face, and (doors) its distance from the free edge.
+HANDLE_M = (0.12, 0.008, 0.03, 0.035)
+HANDLE_COLOR = np.array([60, 60, 60, 255], dtype=np.uint8)
 #: Largest opening angle of a revolute part (rad).
 MAX_SWING = math.pi / 2
 #: Fraction of its depth a drawer may slide out.
@@ -343,7 +348,7 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
         Part(base.name, base.semantic, base_mesh, None, base_prims, base.handle, base.material)
     ]
     for m in kept:
-        parts.append(_rigged(m))
+        parts.append(_rigged(m, unit or 1.0))
     return ArticulatedObject(
         parts,
         category=obj.category,
@@ -352,12 +357,14 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     )
 
 
-def _rigged(m: _Movable) -> Part:
-    """The part with its box as collision geometry and its joint placed on the box."""
+def _rigged(m: _Movable, unit: float) -> Part:
+    """The part with its box (and a bar handle) as collision geometry and its joint
+    placed on the box; ``unit``: generator units per metre."""
     p, j = m.part, m.part.joint
     assert j is not None
     size = m.hi - m.lo
     n, s = m.normal_axis, m.normal_sign
+    handle_style = _handle_style(m, unit)
     if m.hinge_axis is None:
         axis = _unit(n, s)
         upper = min(max(j.upper, 0.0), MAX_SLIDE * float(size[n]))
@@ -375,5 +382,56 @@ def _rigged(m: _Movable) -> Part:
         if np.dot(np.cross(axis, free_dir), _unit(n, s)) < 0:
             axis = -axis
         upper = float(np.clip(j.upper, 0.5, MAX_SWING))
+        if handle_style is not None:  # the bar must not swing past the hinge plane
+            reach = float(size[lat]) - handle_style.edge_margin - handle_style.radius
+            upper = min(upper, math.atan2(reach, handle_style.standoff + handle_style.radius))
         joint = Joint("revolute", origin, axis, 0.0, upper, j.parent)
-    return Part(p.name, p.semantic, p.mesh, joint, [_box(m.lo, m.hi)], p.handle, p.material)
+    prims, mesh, handle = [_box(m.lo, m.hi)], p.mesh, p.handle
+    if handle_style is not None:
+        prims, trims, handle = slab_with_handle(
+            m.lo, m.hi, n, handle_style, _grip(m, handle_style), _grip_axis(m)
+        )
+        prims = prims + trims
+        bar = trimesh.util.concatenate([q.to_mesh() for q in trims])
+        bar.visual.vertex_colors = np.tile(HANDLE_COLOR, (len(bar.vertices), 1))
+        mesh = trimesh.util.concatenate([p.mesh, bar])
+    return Part(p.name, p.semantic, mesh, joint, prims, handle, p.material)
+
+
+def _grip_axis(m: _Movable) -> int:
+    """The bar's axis: along the hinge for a door, along the longer side of a drawer's face."""
+    if m.hinge_axis is not None:
+        return m.hinge_axis
+    face = [k for k in range(3) if k != m.normal_axis]
+    return max(face, key=lambda k: m.hi[k] - m.lo[k])
+
+
+def _grip(m: _Movable, style: HandleStyle) -> np.ndarray:
+    """The bar's centre on the front face: a drawer's face centre; on a door, ``style.
+    edge_margin`` in from the free edge, half-way along the hinge."""
+    grip = (m.lo + m.hi) / 2
+    grip[m.normal_axis] = m.hi[m.normal_axis]
+    if m.hinge_axis is not None:
+        lat = m.lateral_axis
+        assert lat is not None
+        if m.hinge_side > 0:  # hinge on the high side, free edge low
+            grip[lat] = m.lo[lat] + style.edge_margin
+        else:
+            grip[lat] = m.hi[lat] - style.edge_margin
+    return grip
+
+
+def _handle_style(m: _Movable, unit: float) -> HandleStyle | None:
+    """A bar handle for a part that opens toward +x/+y/+z and has none modelled (a
+    gripper cannot pull a bare face); sizes of ``HANDLE_M`` in metres, the bar at most
+    half the face long and the margin at most 0.3 of the door's width."""
+    if m.normal_sign < 0 or m.part.handle is not None:
+        return None
+    length, radius, standoff, margin = (v * unit for v in HANDLE_M)
+    along = _grip_axis(m)
+    length = min(length, 0.5 * float(m.hi[along] - m.lo[along]))
+    if m.hinge_axis is not None:
+        lat = m.lateral_axis
+        assert lat is not None
+        margin = min(margin, 0.3 * float(m.hi[lat] - m.lo[lat]))
+    return HandleStyle("bar", length, radius, standoff, 0.0, 0.0, margin)

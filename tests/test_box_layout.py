@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
-from generator.box_layout import MAX_SLIDE, _base_boxes, fit_box_layout, robust_bounds
+from generator.box_layout import HANDLE_M, MAX_SLIDE, _base_boxes, fit_box_layout, robust_bounds
 
 GAP = 0.01
 
@@ -27,7 +27,7 @@ def _u(*v: float) -> np.ndarray:
 
 
 def _bounds(p: Part) -> np.ndarray:
-    (prim,) = p.primitives
+    prim = p.primitives[0]  # the part's box; a bar handle follows
     c, s = prim.transform[:3, 3], prim.size
     return np.array([c - s / 2, c + s / 2])
 
@@ -92,7 +92,19 @@ def test_door_hinge_on_the_outer_edge_nearest_the_prediction_and_swinging_outwar
     j, (lo, hi) = out["door_1"].joint, _bounds(out["door_1"])
     np.testing.assert_allclose(j.axis, [0, 0, -1])
     assert j.origin[0] == pytest.approx(hi[0]) and j.origin[1] == pytest.approx(lo[1])
-    assert (j.lower, j.upper) == (0.0, pytest.approx(math.pi / 2))
+    # the bar handle: parallel to the hinge, HANDLE_M's margin in from the free edge,
+    # standing off the face; the swing stops before the bar crosses the hinge plane
+    length, radius, standoff, margin = HANDLE_M
+    h = out["door_1"].handle
+    assert h.kind == "bar"
+    np.testing.assert_allclose(
+        h.position, [hi[0] + standoff, hi[1] - margin, (lo[2] + hi[2]) / 2], atol=1e-9
+    )
+    np.testing.assert_allclose(np.abs(h.axis), [0, 0, 1])
+    width = hi[1] - lo[1]
+    assert j.lower == 0.0
+    assert j.upper == pytest.approx(math.atan2(width - margin - radius, standoff + radius))
+    assert 1.3 < j.upper < math.pi / 2
     free_edge = np.array([hi[0], hi[1], 0.0])
     moved = trimesh.transform_points([free_edge], j.transform(0.3))[0]
     assert moved[0] > free_edge[0] + 0.1
