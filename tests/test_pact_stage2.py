@@ -291,7 +291,8 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
     a valid ArticulatedObject with at most the mask's movable parts, valid joints (type,
     unit axis, lower < upper), per-stage timings, and (through the box layout,
     generator.box_layout) an asset that builds and passes every SAPIEN check without
-    repairs. The cabinet has six movable parts, which stage 1 lays out badly."""
+    repairs, one of whose parts the scripted solver opens in SAPIEN. The cabinet has six
+    movable parts, which stage 1 lays out badly."""
     import json
     from pathlib import Path
 
@@ -322,3 +323,16 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
     build_asset(d, height=hints.get("height"))
     report = validate_asset(d, preview=False, repair=False)
     assert report.ok, report.reasons
+
+    # the task-level check: the scripted Panda grasps the layout's handle and opens a part
+    from sim_envs import FolderSource
+    from tasks.solver import solve_part
+
+    (record,) = list(FolderSource(tmp_path))
+    part = (
+        next(p.name for p in obj.parts if p.joint is not None and p.joint.type == "prismatic")
+        if name.startswith("cabinet")
+        else movable[0].name
+    )
+    res, _ = solve_part(record, part, seed=0)
+    assert res.success, (name, part, res)
