@@ -329,6 +329,6 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
     from tasks.solver import solve_part
 
     (record,) = list(FolderSource(tmp_path))
-    part = movable[0].name  # the microwave's door, the cabinet's top drawer
+    part = movable[0].name  # the microwave's door; the cabinet's drawer_1
     res, _ = solve_part(record, part, seed=0)
     assert res.success, (name, part, res)
