@@ -10,8 +10,8 @@ meshes as the visuals:
 
 1. Each movable part gets the axis-aligned box of the bulk of its mesh
    (:func:`robust_bounds`), lifted off the floor by ``clearance``, cut off
-   ``BACK_WALL`` of the object's depth short of its back and, for a drawer, brought
-   flush with the object's face when recessed by up to ``FLUSH`` of the depth. Its joint axis snaps
+   ``BACK_WALL`` of the object's depth short of its back and brought flush with the
+   object's face when recessed by up to ``FLUSH`` of the depth. Its joint axis snaps
    to the nearest of the frame's axes (furniture and appliances are axis-aligned in the
    object frame: front +x, z up). A part's *outward normal* is the side it opens toward:
    for a prismatic part its axis, for a revolute part the axis across the hinge along
@@ -77,9 +77,10 @@ TRIM = 0.03
 #: (a drawer's mesh often spans the whole depth; with the wall the base's mass sits
 #: behind the drawers, as in real furniture, and opening moves them away from it).
 BACK_WALL = 0.1
-#: A drawer's front recessed by up to this fraction of the depth is brought flush with
-#: the object's face (a handle or a worktop's overhang sets that face on generated
-#: objects; a drawer centred in the depth would not visibly move away from the base).
+#: A front recessed by up to this fraction of the depth is brought flush with the
+#: object's face (a handle or a worktop's overhang sets that face on generated objects;
+#: a drawer centred in the depth would not visibly move away from the base, a door
+#: sunk in a pocket is out of a gripper's reach).
 FLUSH = 0.5
 #: A bar handle on every part without one (m): length, radius, standoff of the bar's
 #: axis from the face, and (doors) its distance from the free edge.
@@ -302,14 +303,13 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
         m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
         n = m.normal_axis
         depth = outer_hi[n] - outer_lo[n]
-        flush = m.hinge_axis is None  # a drawer's front: flush with the object's face
         if m.normal_sign > 0:
             m.lo[n] = max(m.lo[n], outer_lo[n] + BACK_WALL * depth)
-            if flush and outer_hi[n] - m.hi[n] <= FLUSH * depth:
+            if outer_hi[n] - m.hi[n] <= FLUSH * depth:
                 m.hi[n] = outer_hi[n]
         else:
             m.hi[n] = min(m.hi[n], outer_hi[n] - BACK_WALL * depth)
-            if flush and m.lo[n] - outer_lo[n] <= FLUSH * depth:
+            if m.lo[n] - outer_lo[n] <= FLUSH * depth:
                 m.lo[n] = outer_lo[n]
     for a, b in itertools.combinations(moving, 2):
         _separate(a, b, gap, min_face)
