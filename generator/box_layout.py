@@ -21,17 +21,18 @@ meshes as the visuals:
    its range: a drawer slid out by its depth, a door's width out of its face) are
    shrunk apart along an axis that is neither one's outward normal (so no part stands
    in another's path), where their boxes overlap least among the axes that leave both
-   faces at least ``MIN_FACE_M`` wide (else where the narrower stays widest): split at the middle of the
-   overlap with a gap of ``clearance``, or, when one box contains the other along that
-   axis, the outer one trimmed to its larger side. A revolute part's free edge sweeps
+   faces at least ``MIN_FACE_M`` wide (else where the narrower stays widest): split at
+   the middle of the overlap with a gap of ``clearance``, or, when one box contains the
+   other along that axis, the outer one trimmed to its larger side. A revolute part's free edge sweeps
    ``sqrt(t^2 + w^2) - w`` past its box (thickness t, width w); that is added to the
    gap on its free side. Shrinking a box never grows a sweep, so one pass over the
    pairs leaves every pair apart.
 3. A revolute hinge goes on the box's outer face, on the lateral edge nearest the
    predicted origin (the paper projects origins onto the box surface; this picks the
    edge), its axis signed so a positive angle swings the free edge outward; the range is
-   [0, min(upper, pi/2)] (past 90 degrees a door sweeps in front of its neighbours). A
-   prismatic range is [0, min(upper, 0.9 x depth)]: an open drawer stays engaged.
+   [0, min(upper, pi/2)] (past 90 degrees a door sweeps in front of its neighbours),
+   less when its handle would otherwise swing past the hinge plane. A prismatic range
+   is [0, min(upper, 0.9 x depth)]: an open drawer stays engaged.
 4. The base is the bounding box of all parts minus one cavity per movable part: its
    box grown by ``clearance`` (and a free edge's bulge) sideways and from its inner
    face out through the base's outer face. The solid cells of that grid are merged
@@ -39,6 +40,11 @@ meshes as the visuals:
 5. Fixed parts are merged into the base, and so is a movable part whose box ends up
    thinner than ``MIN_SIZE_M`` or with a face narrower than ``MIN_FACE_M`` (nothing a
    gripper could open; its cavity is not cut).
+6. A part that opens toward +x, +y or +z and has no modelled handle gets the procedural
+   factory's bar handle (``HANDLE_M``): centred on a drawer's face along its longer
+   side, on a door parallel to the hinge near the free edge. The bar is part of the
+   collision geometry, the visual mesh and ``Part.handle`` (a gripper cannot pull a
+   bare face).
 
 Every part is then a union of convex boxes that do not overlap at rest, while sliding
 or swinging (the arguments above), or when all parts are open; the validator
