@@ -270,7 +270,8 @@ def convert(
         ..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."
     ),
     generator: str = typer.Option(
-        "retrieval", help="retrieval (default until PAct ships) or pact."
+        "retrieval",
+        help="retrieval (default; closer to the input on every metric so far) or pact (docs/model-card.md).",
     ),
     workers: int = typer.Option(1, min=1, help="Local worker processes."),
     executor: str = typer.Option("local", help="local (process pool) or ray."),
