@@ -61,8 +61,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from .articulated import ArticulatedObject, Joint, Part, Primitive
+from .articulated import ArticulatedObject, Joint, Part
 from .procedural.blocks import HandleStyle, slab_with_handle
+from .procedural.solids import box
 
 log = logging.getLogger(__name__)
 
@@ -115,10 +116,9 @@ class _Movable:
         return 3 - self.normal_axis - self.hinge_axis
 
 
-def _snap(v: np.ndarray) -> tuple[int, float]:
-    """Nearest frame axis of a direction: (index, sign)."""
-    i = int(np.argmax(np.abs(v)))
-    return i, 1.0 if v[i] >= 0 else -1.0
+def _nearest_axis(v: np.ndarray) -> int:
+    """Index of the frame axis nearest a direction (either sign)."""
+    return int(np.argmax(np.abs(v)))
 
 
 def _unit(i: int, sign: float = 1.0) -> np.ndarray:
@@ -134,6 +134,18 @@ def _swing_bulge(m: _Movable) -> float:
     t = float(m.hi[m.normal_axis] - m.lo[m.normal_axis])
     w = float(m.hi[m.lateral_axis] - m.lo[m.lateral_axis])  # type: ignore[index]
     return math.hypot(t, w) - w
+
+
+def _add_bulge(m: _Movable, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Grow ``lo``/``hi`` (in place) on a revolute part's free side by its bulge."""
+    if m.hinge_axis is None:
+        return
+    lat = m.lateral_axis
+    assert lat is not None
+    if m.hinge_side > 0:
+        lo[lat] -= _swing_bulge(m)
+    else:
+        hi[lat] += _swing_bulge(m)
 
 
 def robust_bounds(mesh: trimesh.Trimesh, trim: float = TRIM, samples: int = 4096) -> np.ndarray:
@@ -157,14 +169,15 @@ def _outward_sign(i: int, lo: np.ndarray, hi: np.ndarray, outer: np.ndarray) -> 
     return 1.0 if to_high < to_low else -1.0
 
 
-def _classify(part: Part, outer: np.ndarray) -> _Movable:
+def _classify(part: Part, bounds: np.ndarray, outer: np.ndarray) -> _Movable:
+    """The part with its box ``bounds`` (2, 3), its outward normal and (revolute) hinge."""
     j = part.joint
     assert j is not None and j.movable
-    lo, hi = robust_bounds(part.mesh)
+    lo, hi = (np.array(b, float) for b in bounds)
     if j.type == "prismatic":
-        i, _ = _snap(j.axis)
+        i = _nearest_axis(j.axis)
         return _Movable(part, lo, hi, i, _outward_sign(i, lo, hi, outer))
-    h, _ = _snap(j.axis)
+    h = _nearest_axis(j.axis)
     others = [k for k in range(3) if k != h]
     n = min(others, key=lambda k: hi[k] - lo[k])  # the face: thinnest across the hinge
     sign = _outward_sign(n, lo, hi, outer)
@@ -179,16 +192,9 @@ def _swept(m: _Movable) -> tuple[np.ndarray, np.ndarray]:
     bulges sideways."""
     lo, hi = m.lo.copy(), m.hi.copy()
     n = m.normal_axis
-    if m.hinge_axis is None:
-        reach = hi[n] - lo[n]
-    else:
-        lat = m.lateral_axis
-        assert lat is not None
-        reach = hi[lat] - lo[lat]
-        if m.hinge_side > 0:
-            lo[lat] -= _swing_bulge(m)
-        else:
-            hi[lat] += _swing_bulge(m)
+    across = n if m.hinge_axis is None else m.lateral_axis  # the extent that sweeps out
+    reach = hi[across] - lo[across]
+    _add_bulge(m, lo, hi)
     if m.normal_sign > 0:
         hi[n] += reach
     else:
@@ -280,12 +286,6 @@ def _base_boxes(
     return boxes
 
 
-def _box(lo: np.ndarray, hi: np.ndarray) -> Primitive:
-    T = np.eye(4)
-    T[:3, 3] = (lo + hi) / 2
-    return Primitive("box", hi - lo, T)
-
-
 def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> ArticulatedObject:
     """A copy of ``obj`` whose parts have box collision geometry and consistent joints
     (the module docstring); ``clearance`` in the object's units (default: 4 mm when
@@ -300,11 +300,12 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     fixed = [p for p in obj.parts[1:] if p.joint is None or not p.joint.movable]
     movable_parts = [p for p in obj.parts[1:] if p.joint is not None and p.joint.movable]
     all_bounds = np.array([robust_bounds(p.mesh) for p in obj.parts])
+    bounds_of = {p.name: b for p, b in zip(obj.parts, all_bounds, strict=True)}
     outer_lo, outer_hi = all_bounds[:, 0].min(0), all_bounds[:, 1].max(0)
     # the pipeline stands the object on its meshes' lowest point: the base reaches it
     outer_lo[2] = min(float(p.mesh.bounds[0, 2]) for p in obj.parts)
     outer = np.array([outer_lo, outer_hi])
-    moving = [_classify(p, outer) for p in movable_parts]
+    moving = [_classify(p, bounds_of[p.name], outer) for p in movable_parts]
     for m in moving:  # a moving part does not drag on the floor, the base keeps a back
         m.lo[2] = max(m.lo[2], outer_lo[2] + gap)
         n = m.normal_axis
@@ -333,19 +334,14 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     cavities = []
     for m in kept:
         lo, hi = m.lo - gap, m.hi + gap
-        if m.hinge_axis is not None:  # room for the free edge's bulge
-            lat = m.lateral_axis
-            if m.hinge_side > 0:
-                lo[lat] -= _swing_bulge(m)
-            else:
-                hi[lat] += _swing_bulge(m)
+        _add_bulge(m, lo, hi)  # room for a door's free edge
         n, s = m.normal_axis, m.normal_sign
         if s > 0:
             lo[n], hi[n] = m.lo[n] - gap, outer_hi[n] + 1.0
         else:
             lo[n], hi[n] = outer_lo[n] - 1.0, m.hi[n] + gap
         cavities.append((lo, hi))
-    base_prims = [_box(lo, hi) for lo, hi in _base_boxes(outer_lo, outer_hi, cavities, sliver)]
+    base_prims = [box(lo, hi) for lo, hi in _base_boxes(outer_lo, outer_hi, cavities, sliver)]
 
     base_mesh = base.mesh
     if dropped:
@@ -392,7 +388,7 @@ def _rigged(m: _Movable, unit: float) -> Part:
             reach = float(size[lat]) - handle_style.edge_margin - handle_style.radius
             upper = min(upper, math.atan2(reach, handle_style.standoff + handle_style.radius))
         joint = Joint("revolute", origin, axis, 0.0, upper, j.parent)
-    prims, mesh, handle = [_box(m.lo, m.hi)], p.mesh, p.handle
+    prims, mesh, handle = [box(m.lo, m.hi)], p.mesh, p.handle
     if handle_style is not None:
         prims, trims, handle = slab_with_handle(
             m.lo, m.hi, n, handle_style, _grip(m, handle_style), _grip_axis(m)
