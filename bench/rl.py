@@ -44,6 +44,28 @@ def plot(rows: list[dict], path: Path) -> bool:
     return True
 
 
+def _overrides(items: list[str]) -> dict:
+    """``FIELD=VALUE`` strings as typed ``tasks.train.Args`` overrides (the type of the
+    field's default; fields defaulting to None take floats)."""
+    from dataclasses import fields
+
+    from tasks.train import Args
+
+    known = {f.name: f for f in fields(Args)}
+    out = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in known or not value:
+            raise SystemExit(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {sorted(known)}")
+        default = getattr(Args(), name)
+        kind = type(default) if default is not None and not isinstance(default, bool) else float
+        if isinstance(default, bool):
+            out[name] = value.lower() in ("1", "true", "yes", "on")
+        else:
+            out[name] = kind(value)
+    return out
+
+
 def main() -> None:
     from sim import build_procedural
 
@@ -81,6 +103,13 @@ def main() -> None:
         default=None,
         help="initial log std of the Gaussian policy (default: tasks.train.Args)",
     )
+    ap.add_argument(
+        "--set",
+        nargs="+",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="override tasks.train.Args fields, e.g. --set learning_rate=1e-4 target_kl=0.05",
+    )
     ap.add_argument("--eval-every", type=int, default=15_000)
     ap.add_argument("--eval-episodes", type=int, default=20)
     ap.add_argument(
@@ -96,6 +125,7 @@ def main() -> None:
     extra = {} if a.log_std_init is None else {"log_std_init": a.log_std_init}
     if a.require_grasp is not None:
         extra["require_grasp"] = a.require_grasp
+    extra.update(_overrides(a.set))
     args = Args(
         env_id="OpenDrawer-v0",
         assets=str(train_dir),

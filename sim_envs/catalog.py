@@ -38,6 +38,9 @@ class AssetSourceError(ValueError):
     """An asset folder or catalog cannot be read; the message names the file and what to do."""
 
 
+HANDLE_KINDS = ("bar", "knob", "recessed", "none")
+
+
 @dataclass(frozen=True)
 class MovablePart:
     """One movable part of a built asset, as the tasks need it.
@@ -63,6 +66,11 @@ class MovablePart:
     @property
     def range(self) -> float:
         return self.upper - self.lower
+
+    @property
+    def handle_kind_onehot(self) -> tuple[float, ...]:
+        """``handle_kind`` as a one-hot over :data:`HANDLE_KINDS` (all zero if unknown)."""
+        return tuple(float(self.handle_kind == k) for k in HANDLE_KINDS)
 
 
 @dataclass(frozen=True)

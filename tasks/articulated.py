@@ -212,7 +212,7 @@ class ArticulatedPartEnv(BaseEnv):
             for k in range(n_slots)
         ]
         rows: dict[str, list] = {k: [] for k in ("dof", "hl", "ho", "ha", "ja", "lo", "hi")}
-        rows.update(base=[], yaw=[], normal=[], qstart=[])
+        rows.update(base=[], yaw=[], normal=[], qstart=[], kind=[])
         for i, parts in enumerate(self.candidate_parts):
             joint_names = [j.name for j in objects[i].active_joints]
             rec = self.episode_assets[i]
@@ -231,6 +231,7 @@ class ArticulatedPartEnv(BaseEnv):
                 [_start_qpos(p, q) for p, (_, _, q) in zip(slot_parts, placements, strict=True)]
             )
             rows["normal"].append([face_normal_link(p) for p in slot_parts])
+            rows["kind"].append([p.handle_kind_onehot for p in slot_parts])
 
         def tensor(v: list) -> torch.Tensor:
             return torch.tensor(np.asarray(v, dtype=np.float32), device=self.device)
@@ -246,6 +247,7 @@ class ArticulatedPartEnv(BaseEnv):
         self._slot_base_yaw = tensor(rows["yaw"])  # (N, P)
         self._slot_normal = tensor(rows["normal"])  # (N, P, 3) handle face normal, link frame
         self._slot_qstart = tensor(rows["qstart"])  # (N, P, 9) robot joints at the start
+        self._slot_handle_kind = tensor(rows["kind"])  # (N, P, K) one-hot of catalog.HANDLE_KINDS
         n = self.num_envs
         self.part_slot = torch.zeros(n, device=self.device, dtype=torch.long)
         self.episode_parts: list[MovablePart] = [c[0] for c in self.candidate_parts]
@@ -254,6 +256,7 @@ class ArticulatedPartEnv(BaseEnv):
         self.handle_rest_pos = self._slot_handle_rest[:, 0].clone()  # (N, 3) object frame
         self.handle_axis_obj = self._slot_handle_axis[:, 0].clone()  # (N, 3)
         self.handle_normal_link = self._slot_normal[:, 0].clone()  # (N, 3)
+        self.handle_kind = self._slot_handle_kind[:, 0].clone()  # (N, K) one-hot
         self.joint_axis_obj = self._slot_joint_axis[:, 0].clone()  # (N, 3)
         self.qlow = self._slot_qlow[:, 0].clone()  # (N,)
         self.qhigh = self._slot_qhigh[:, 0].clone()  # (N,)
@@ -285,6 +288,7 @@ class ArticulatedPartEnv(BaseEnv):
             ("handle_rest_pos", self._slot_handle_rest),
             ("handle_axis_obj", self._slot_handle_axis),
             ("handle_normal_link", self._slot_normal),
+            ("handle_kind", self._slot_handle_kind),
             ("joint_axis_obj", self._slot_joint_axis),
             ("qlow", self._slot_qlow),
             ("qhigh", self._slot_qhigh),
@@ -435,6 +439,7 @@ class ArticulatedPartEnv(BaseEnv):
                 open_fraction=info["open_fraction"][:, None],
                 is_grasped=info["is_grasped"][:, None].float(),
                 joint_axis=self.joint_axis_world(),
+                handle_kind=self.handle_kind,
             )
         return obs
 

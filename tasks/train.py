@@ -79,11 +79,19 @@ class Args:
     gamma: float = 0.9
     gae_lambda: float = 0.95
     ent_coef: float = 0.0
+    target_kl: float | None = None
+    """stop an update's epochs early once the approximate KL to the rollout policy
+    exceeds 1.5 x this (SB3's ``target_kl``); None: no limit"""
     log_std_init: float = -2.0
     """initial log std of the Gaussian policy: -2 (std 0.135, 1.4 cm per step in
     ``pd_ee_delta_pos`` at 10 Hz) rather than -1 (3.7 cm per step, larger than a grasp
     tolerates); measured in 25-minute ``bench/rl.py`` runs: held-out curve points from
     150k to 275k steps averaged 0.475 (10 points of 20 episodes) against 0.28"""
+    gripper_log_std_init: float | None = None
+    """initial log std of the gripper action alone (None: ``log_std_init``). The gripper
+    dimension is an absolute finger target (-1..1 to -0.01..0.04 m), not a delta like
+    the position dimensions, so ``log_std_init`` -2 explores only +-3.4 mm of finger
+    travel: too little to find a grasp by chance"""
     gripper_init: float | None = None
     """initial mean of the gripper action (the last action dimension of every Panda
     control mode), set through the policy's action-layer bias: ManiSkill maps -1..1 to
@@ -478,6 +486,15 @@ def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
 # --------------------------------------------------------------------------- training
 
 
+def set_initial_log_std(model: Any, index: int, value: float) -> None:
+    """Set an SB3 Gaussian policy's initial log std in dimension ``index`` (its
+    state-independent ``log_std`` parameter)."""
+    import torch
+
+    with torch.no_grad():
+        model.policy.log_std[index] = float(value)
+
+
 def set_initial_action_mean(model: Any, index: int, value: float) -> None:
     """Make an SB3 Gaussian policy's mean action ``value`` in dimension ``index`` at the
     start: its action layer starts with near-zero weights (orthogonal, gain 0.01), so the
@@ -513,6 +530,7 @@ def train(args: Args) -> dict[str, Any]:
         gamma=args.gamma,
         gae_lambda=args.gae_lambda,
         ent_coef=args.ent_coef,
+        target_kl=args.target_kl,
         seed=args.seed,
         device=args.device,
         policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
@@ -520,6 +538,8 @@ def train(args: Args) -> dict[str, Any]:
     )
     if args.gripper_init is not None:
         set_initial_action_mean(model, -1, args.gripper_init)
+    if args.gripper_log_std_init is not None:
+        set_initial_log_std(model, -1, args.gripper_log_std_init)
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     t0 = time.time()

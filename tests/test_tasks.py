@@ -172,6 +172,22 @@ def test_resets_between_reconfigurations_resample_part_and_poses(
         env.close()
 
 
+def test_state_obs_carries_the_target_handle_kind(procedural_assets: Path) -> None:
+    """``handle_kind`` in the state observation is the one-hot of the episode's part."""
+    from sim_envs.catalog import HANDLE_KINDS
+
+    env = _make("OpenDoor-v0", procedural_assets, obs_mode="state_dict")
+    try:
+        for seed in range(6):
+            obs, _ = env.reset(seed=seed)
+            kind = env.unwrapped.episode_parts[0].handle_kind
+            onehot = obs["extra"]["handle_kind"][0].numpy()
+            assert onehot.tolist() == [float(kind == k) for k in HANDLE_KINDS]
+            assert onehot.sum() == 1.0
+    finally:
+        env.close()
+
+
 def test_robot_placement_keeps_door_path_in_reach(procedural_assets: Path) -> None:
     from sim_envs import FolderSource
     from tasks.placement import REACH, SHOULDER_HEIGHT, handle_path, robot_base_for_part
@@ -307,6 +323,28 @@ def test_initial_action_mean_opens_the_gripper_without_changing_other_dimensions
     assert np.abs(before[:, -1]).max() < 0.05  # SB3's start: half-closed fingers
     np.testing.assert_allclose(after[:, -1], 1.0, atol=0.05)
     np.testing.assert_array_equal(after[:, :-1], before[:, :-1])
+
+
+def test_initial_log_std_widens_only_the_gripper_exploration():
+    """``set_initial_log_std`` sets the gripper's std (exp of the value) and leaves the
+    position dimensions at the policy's ``log_std_init``."""
+    from types import SimpleNamespace
+
+    import torch
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    from tasks.train import set_initial_log_std
+
+    actions = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+    policy = ActorCriticPolicy(
+        gym.spaces.Box(-5.0, 5.0, (6,), np.float32), actions, lambda _: 3e-4, log_std_init=-2.0
+    )
+    set_initial_log_std(SimpleNamespace(policy=policy), -1, 0.0)
+    with torch.no_grad():
+        std = policy.get_distribution(torch.zeros(1, 6)).distribution.stddev.numpy()[0]
+    np.testing.assert_allclose(std, [np.exp(-2.0)] * 3 + [1.0], rtol=1e-6)
+    # the optimizer still trains it: it is the same parameter
+    assert any(p is policy.log_std for g in policy.optimizer.param_groups for p in g["params"])
 
 
 def test_near_start_curriculum_puts_the_fingers_round_the_handle(procedural_assets: Path) -> None:
