@@ -44,6 +44,17 @@ def plot(rows: list[dict], path: Path) -> bool:
     return True
 
 
+def by_kind(episodes: list[dict]) -> dict[str, str]:
+    """Successes / episodes and grasped episodes per handle kind."""
+    out: dict[str, list[int]] = {}
+    for e in episodes:
+        c = out.setdefault(e["handle_kind"], [0, 0, 0])
+        c[0] += int(e["success"])
+        c[1] += 1
+        c[2] += int(e["grasped"])
+    return {k: f"{s}/{n} opened, {g} grasped" for k, (s, n, g) in sorted(out.items())}
+
+
 def _overrides(items: list[str]) -> dict:
     """``FIELD=VALUE`` strings as typed ``tasks.train.Args`` overrides (the type of the
     field's default; fields defaulting to None take floats)."""
@@ -158,7 +169,9 @@ def main() -> None:
                 "final_policy_held_out": {
                     "episodes": a.final_episodes,
                     "success_rate": final["success_rate"],
+                    "grasp_rate": final["grasp_rate"],
                     "mean_return": round(final["mean_return"], 3),
+                    "by_handle_kind": by_kind(final["episodes"]),
                 },
                 "train_seconds": round(result["seconds"], 1),
                 "policy": result["policy"],

@@ -30,6 +30,9 @@ from sim_envs.catalog import MovablePart
 READY_TCP = np.array([0.615, 0.0, 0.818])  # tcp in the robot base frame at READY_QPOS (FK)
 SHOULDER_HEIGHT = 0.333  # panda_link2 above the base
 REACH = (0.35, 0.68)  # comfortable shoulder-to-tcp distances (m)
+# the closed handle is grasped first: a base whose shoulder is further from it than
+# this (m) cannot start the task at all, however well it suits the rest of the path
+FIRST_GRASP_REACH = 0.8
 BASE_CLEARANCE = 0.2  # base column radius plus margin (m)
 PATH_FRACTIONS = np.linspace(0.0, 0.9, 10)  # of the joint range
 FOLLOW_FRACTIONS = np.linspace(0.0, 0.85, 9)
@@ -478,6 +481,7 @@ def _candidate_bases(
     # the base column must stay clear of the object and of the swept volume
     clear_obj = _box_distance_xy(base[:, :2], lo[:2], hi[:2])
     bad = clear_obj < BASE_CLEARANCE
+    bad |= dist[:, 0] > FIRST_GRASP_REACH
     # (the arm rises above its base: any height of the swept volume counts; ``high``:
     # only the swept volume above the base's bottom, under a robot standing high)
     near = np.linalg.norm(swept[None, :, :2] - base[:, None, :2], axis=2) < BASE_CLEARANCE

@@ -91,7 +91,7 @@ class SolverConfig:
     handle_speed: float = 0.02  # metres per control step of a door's handle along its arc
     overshoot: float = 0.06  # open (or close) this far past the goal fraction
     stall_steps: int = 10
-    max_steps: int = 300
+    max_steps: int = 400
     hold_steps: int = 15
     recess_depth: float = -0.0045  # tcp past a recessed pull's point (the bridge's middle):
     # 4.5 mm short of it, so the 18.5 mm fingertips clear the bottom of a 10 mm pocket
@@ -104,6 +104,7 @@ class SolverConfig:
     push_edge_clearance: float = 0.08  # m beyond the free edge when going round it
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
+    push_retry_steps: int = 100  # steps a second push needs; fewer left: no retry
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
@@ -376,23 +377,33 @@ class ScriptedSolver:
                 do(self._action(away, GRIPPER_CLOSED))
             return
         self._phase = "push"
-        # 4. push: the pressing pose carried a little further along the hinge circle
+        # 4. push: the pressing pose carried a little further along the hinge circle;
+        # once the arm cannot turn the hand any further (a wrist joint at its limit),
+        # the hand keeps its orientation and only its position follows the circle
         press = nearest(waypoints[-1][1])
         history: list[float] = []
+        follow_rotation = True
+        last_tcp = self._tcp()
         while True:
             f = frac()
             if f >= target or self._step >= cfg.max_steps - cfg.hold_steps:
                 break
             history.append(f)
+            tcp = self._tcp()
+            stuck = self._ik_failed if cfg.ik_check else self._frozen(last_tcp, tcp)
+            last_tcp = tcp
+            if follow_rotation and len(history) > 2 and stuck:
+                follow_rotation = False
+                history = [f]
+                self._phase = "push:translate"
             if len(history) > 2 * cfg.stall_steps and f - history[-2 * cfg.stall_steps] < 0.005:
                 break
             L = self._link()
             dq = min(cfg.revolute_speed, (target - f) * part.range + 0.01)
-            do(
-                self._action(
-                    joint_motion("revolute", axis, L[:3, 3], dq) @ L @ press, GRIPPER_CLOSED
-                )
-            )
+            goal = joint_motion("revolute", axis, L[:3, 3], dq) @ L @ press
+            if not follow_rotation:
+                goal[:3, :3] = tcp[:3, :3]
+            do(self._action(goal, GRIPPER_CLOSED))
 
     def _reach_model(self) -> tuple[PandaReach, np.ndarray, float, np.ndarray]:
         """The arm's kinematics (for planning), the robot base's position and yaw in the
@@ -426,11 +437,14 @@ class ScriptedSolver:
             return None, 0.0
         return switch, tilt
 
-    def _push_tilt(self, part: Any, fraction: float, depth: float) -> float:
-        """The pusher's tilt whose push from ``fraction`` the arm follows furthest."""
+    def _push_tilt(
+        self, part: Any, fraction: float, depth: float, tilts: Any = PUSH_TILTS
+    ) -> float:
+        """Of ``tilts``, the pusher's tilt whose push from ``fraction`` the arm follows
+        furthest."""
         reach, base, yaw, q = self._reach_model()
-        best, tilt = -1.0, 0.0
-        for t in PUSH_TILTS:
+        best, tilt = -1.0, float(tilts[0])
+        for t in tilts:
             steps, _ = push_steps(part, fraction, t, depth)
             got, _ = reach.follow(base, yaw, steps, q0=q)
             if got > best:
@@ -626,6 +640,14 @@ class ScriptedSolver:
                 if switch is None or frac() < switch - 0.1:  # stalled before the plan's switch
                     tilt = self._push_tilt(part, frac(), face_depth)
                 self._push_open(part, target, axis_obj, do, frac, tilt)
+                left = cfg.max_steps - cfg.hold_steps - step
+                if frac() < u.open_goal + cfg.goal_margin and left >= cfg.push_retry_steps:
+                    # stalled short (the arm at a joint limit): push again from here
+                    # with the pusher held another way
+                    others = [t for t in PUSH_TILTS if t != tilt]
+                    tilt = self._push_tilt(part, frac(), face_depth, others)
+                    log.debug("push stalled at %.3f; again with tilt %.2f", frac(), tilt)
+                    self._push_open(part, target, axis_obj, do, frac, tilt)
         # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
         phase = self._phase = "hold"
         hold = self._tcp()

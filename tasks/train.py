@@ -72,6 +72,10 @@ class Args:
     """reload an asset every k episodes per env (1: every episode, slow on CPU where a
     reload costs 0.3-0.5 s; 0: never); resets in between re-sample part and poses"""
     learning_rate: float = 3e-4
+    lr_anneal_steps: int | None = None
+    """decay the learning rate linearly to zero over this many environment steps (then
+    hold it at zero; None: constant): PPO's policy still moves a lot per update late in
+    a run, so the final policy is one draw from a noisy stream"""
     n_steps: int = 128
     """rollout length per env"""
     batch_size: int = 256
@@ -416,7 +420,7 @@ def evaluate(
             env_kwargs.setdefault(k, v)
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
     norm = obs_norm or (lambda o: o)
-    successes, returns, ids, grasped = [], [], [], []
+    successes, returns, ids, grasped, parts = [], [], [], [], []
     try:
         for k in range(episodes):
             obs, _ = env.reset(seed=seed + k)
@@ -434,6 +438,7 @@ def evaluate(
             returns.append(ret)
             grasped.append(held)
             ids.append(env.unwrapped.episode_assets[0].id)
+            parts.append(env.unwrapped.episode_parts[0])
             if video_dir:
                 write_video(frames, Path(video_dir) / f"episode_{k:03d}_{ids[-1]}")
     finally:
@@ -443,8 +448,15 @@ def evaluate(
         "mean_return": float(np.mean(returns)) if returns else 0.0,
         "grasp_rate": float(np.mean(grasped)) if grasped else 0.0,
         "episodes": [
-            {"asset": a, "success": s, "return": float(r), "grasped": g}
-            for a, s, r, g in zip(ids, successes, returns, grasped, strict=True)
+            {
+                "asset": a,
+                "part": p.name,
+                "handle_kind": p.handle_kind,
+                "success": s,
+                "return": float(r),
+                "grasped": g,
+            }
+            for a, p, s, r, g in zip(ids, parts, successes, returns, grasped, strict=True)
         ],
     }
 
@@ -486,6 +498,21 @@ def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
 # --------------------------------------------------------------------------- training
 
 
+def learning_rate_schedule(args: Args) -> Any:
+    """``args.learning_rate``, or with ``lr_anneal_steps`` SB3's schedule form (a function
+    of the remaining progress, 1 at the start and 0 at ``total_timesteps``) of a linear
+    decay to zero at ``lr_anneal_steps`` steps."""
+    if args.lr_anneal_steps is None:
+        return args.learning_rate
+    lr0, total, horizon = args.learning_rate, args.total_timesteps, args.lr_anneal_steps
+
+    def schedule(progress_remaining: float) -> float:
+        steps = (1.0 - progress_remaining) * total
+        return lr0 * max(0.0, 1.0 - steps / horizon)
+
+    return schedule
+
+
 def set_initial_log_std(model: Any, index: int, value: float) -> None:
     """Set an SB3 Gaussian policy's initial log std in dimension ``index`` (its
     state-independent ``log_std`` parameter)."""
@@ -523,7 +550,7 @@ def train(args: Args) -> dict[str, Any]:
     model = PPO(
         "MlpPolicy",
         venv,
-        learning_rate=args.learning_rate,
+        learning_rate=learning_rate_schedule(args),
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         n_epochs=args.n_epochs,

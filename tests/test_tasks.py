@@ -325,6 +325,20 @@ def test_initial_action_mean_opens_the_gripper_without_changing_other_dimensions
     np.testing.assert_array_equal(after[:, :-1], before[:, :-1])
 
 
+def test_learning_rate_anneals_linearly_to_zero_at_the_given_step():
+    from tasks.train import Args, learning_rate_schedule
+
+    assert learning_rate_schedule(Args(learning_rate=3e-4)) == 3e-4
+    lr = learning_rate_schedule(
+        Args(learning_rate=3e-4, total_timesteps=1000, lr_anneal_steps=500)
+    )
+    # SB3 calls it with the remaining progress 1 - steps / total_timesteps
+    assert lr(1.0) == pytest.approx(3e-4)
+    assert lr(1.0 - 250 / 1000) == pytest.approx(1.5e-4)
+    assert lr(1.0 - 500 / 1000) == pytest.approx(0.0)
+    assert lr(0.0) == 0.0
+
+
 def test_initial_log_std_widens_only_the_gripper_exploration():
     """``set_initial_log_std`` sets the gripper's std (exp of the value) and leaves the
     position dimensions at the policy's ``log_std_init``."""
