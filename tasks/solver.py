@@ -166,6 +166,10 @@ def joint_motion(joint_type: str, axis: np.ndarray, pivot: np.ndarray, dq: float
     return M
 
 
+class _PushDone(Exception):
+    """Going round to push, the hand swung the part past its target."""
+
+
 class _PushAborted(Exception):
     """The push approach knocked the part shut."""
 
@@ -360,6 +364,8 @@ class ScriptedSolver:
             do(action)
             if frac() < start - cfg.push_max_loss:
                 raise _PushAborted
+            if frac() >= target:  # going round already swung it open: stop there
+                raise _PushDone
 
         # 3. round the free edge, behind the inner face and along it to the pressing point
         try:
@@ -367,6 +373,9 @@ class ScriptedSolver:
                 self._phase = f"push:{name}"
                 T = nearest(poses)
                 self._go(lambda T=T: self._link() @ T, GRIPPER_CLOSED, guarded, budget=25)
+        except _PushDone:
+            log.debug("push approach opened the part to %.3f", frac())
+            return
         except _PushAborted:
             # going round the free edge swept the part shut: back off, keep what is left
             log.debug("push approach closed the part (%.3f -> %.3f); aborting", start, frac())
@@ -634,6 +643,14 @@ class ScriptedSolver:
                     info = do(self._action(away, GRIPPER_OPEN))
                     if bool(_np(info["success"])[0]):
                         break
+                left = cfg.max_steps - cfg.hold_steps - step
+                if not bool(_np(info["success"])[0]) and left >= cfg.push_retry_steps:
+                    # it came to rest short (on the arm): press its inner face on down
+                    phase = self._phase = "push"
+                    g_final = GRIPPER_CLOSED
+                    face_depth = self._inner_face_depth(hinge_frame_link(part)[2])
+                    tilt = self._push_tilt(part, frac(), face_depth)
+                    self._push_open(part, target, axis_obj, do, frac, tilt)
             elif frac() * part.range >= cfg.push_min_angle:
                 phase = self._phase = "push"
                 g_final = GRIPPER_CLOSED
