@@ -86,3 +86,28 @@ def test_solver_pulls_then_pushes_a_wide_fridge_door(wide_fridge) -> None:
     phases = [t["phase"] for t in solver.trace]
     assert "push:press" in phases and "push:abort" not in phases, sorted(set(phases))
     assert res.success, res
+
+
+def test_candidate_bases_must_reach_the_closed_handle(wide_fridge) -> None:
+    """Every base the placement may pick has its shoulder within FIRST_GRASP_REACH of
+    the closed handle (the first grasp), and the grid does hold bases beyond it that
+    only this rule excludes (a cost that merely penalized them once picked a base 0.83 m
+    from a cabinet door's handle, where no grasp was possible)."""
+    from tasks.placement import (
+        FIRST_GRASP_REACH,
+        PATH_FRACTIONS,
+        SHOULDER_HEIGHT,
+        _candidate_bases,
+        handle_path,
+        opening_normals,
+    )
+
+    part = next(p for p in wide_fridge.parts if p.name == WIDE_FRIDGE[2])
+    path = handle_path(part, PATH_FRACTIONS)
+    base, _, cost = _candidate_bases(part, wide_fridge.bounds, path, -opening_normals(part))
+    shoulder = base + np.array([0.0, 0.0, SHOULDER_HEIGHT])
+    first = np.linalg.norm(shoulder - path[0], axis=1)
+    ok = np.isfinite(cost)
+    assert ok.any()
+    assert (first[ok] <= FIRST_GRASP_REACH + 1e-9).all()
+    assert (first > FIRST_GRASP_REACH).sum() > 0
