@@ -57,7 +57,7 @@ def by_kind(episodes: list[dict]) -> dict[str, str]:
 
 def _overrides(items: list[str]) -> dict:
     """``FIELD=VALUE`` strings as typed ``tasks.train.Args`` overrides (the type of the
-    field's default; fields defaulting to None take floats)."""
+    field's default; fields defaulting to None take floats; "none" gives None)."""
     from dataclasses import fields
 
     from tasks.train import Args
@@ -69,6 +69,9 @@ def _overrides(items: list[str]) -> dict:
         if name not in known or not value:
             raise SystemExit(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {sorted(known)}")
         default = getattr(Args(), name)
+        if value.lower() == "none":
+            out[name] = None
+            continue
         kind = type(default) if default is not None and not isinstance(default, bool) else float
         if isinstance(default, bool):
             out[name] = value.lower() in ("1", "true", "yes", "on")

@@ -328,7 +328,7 @@ def test_initial_action_mean_opens_the_gripper_without_changing_other_dimensions
 def test_learning_rate_anneals_linearly_to_zero_at_the_given_step():
     from tasks.train import Args, learning_rate_schedule
 
-    assert learning_rate_schedule(Args(learning_rate=3e-4)) == 3e-4
+    assert learning_rate_schedule(Args(learning_rate=3e-4, lr_anneal_steps=None)) == 3e-4
     lr = learning_rate_schedule(
         Args(learning_rate=3e-4, total_timesteps=1000, lr_anneal_steps=500)
     )
@@ -337,6 +337,13 @@ def test_learning_rate_anneals_linearly_to_zero_at_the_given_step():
     assert lr(1.0 - 250 / 1000) == pytest.approx(1.5e-4)
     assert lr(1.0 - 500 / 1000) == pytest.approx(0.0)
     assert lr(0.0) == 0.0
+    # from the command line: the default, a number, or none for a constant rate
+    from tasks.train import parse_args
+
+    assert parse_args([]).lr_anneal_steps == Args().lr_anneal_steps
+    assert parse_args(["--lr-anneal-steps", "1000"]).lr_anneal_steps == 1000
+    assert parse_args(["--lr-anneal-steps", "none"]).lr_anneal_steps is None
+    assert parse_args(["--gripper-init", "1"]).gripper_init == 1.0
 
 
 def test_initial_log_std_widens_only_the_gripper_exploration():
