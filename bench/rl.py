@@ -56,28 +56,26 @@ def by_kind(episodes: list[dict]) -> dict[str, str]:
 
 
 def _overrides(items: list[str]) -> dict:
-    """``FIELD=VALUE`` strings as typed ``tasks.train.Args`` overrides (the type of the
-    field's default; fields defaulting to None take floats; "none" gives None)."""
-    from dataclasses import fields
+    """``FIELD=VALUE`` strings as typed ``tasks.train.Args`` overrides, parsed by
+    ``tasks.train.parse_args`` (booleans take true/false, lists comma-separated values,
+    optional fields "none")."""
+    from tasks.train import Args, parse_args
 
-    from tasks.train import Args
-
-    known = {f.name: f for f in fields(Args)}
-    out = {}
+    argv, names = [], []
     for item in items:
         name, _, value = item.partition("=")
-        if name not in known or not value:
-            raise SystemExit(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {sorted(known)}")
-        default = getattr(Args(), name)
-        if value.lower() == "none":
-            out[name] = None
-            continue
-        kind = type(default) if default is not None and not isinstance(default, bool) else float
-        if isinstance(default, bool):
-            out[name] = value.lower() in ("1", "true", "yes", "on")
+        if name not in Args.__dataclass_fields__ or not value:
+            known = sorted(Args.__dataclass_fields__)
+            raise SystemExit(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {known}")
+        flag = "--" + name.replace("_", "-")
+        if isinstance(getattr(Args(), name), bool):
+            on = value.lower() in ("1", "true", "yes", "on")
+            argv.append(flag if on else "--no-" + flag[2:])
         else:
-            out[name] = kind(value)
-    return out
+            argv += [flag, *value.split(",")]
+        names.append(name)
+    parsed = parse_args(argv)
+    return {name: getattr(parsed, name) for name in names}
 
 
 def main() -> None:

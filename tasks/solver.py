@@ -511,6 +511,9 @@ class ScriptedSolver:
         def frac() -> float:
             return float(_np(u.open_fraction())[0])
 
+        def steps_left() -> int:  # before the final hold
+            return cfg.max_steps - cfg.hold_steps - step
+
         def do(action: np.ndarray) -> dict:
             nonlocal step, info
             if cfg.ik_check:
@@ -643,12 +646,10 @@ class ScriptedSolver:
                     info = do(self._action(away, GRIPPER_OPEN))
                     if bool(_np(info["success"])[0]):
                         break
-                left = cfg.max_steps - cfg.hold_steps - step
-                if not bool(_np(info["success"])[0]) and left >= cfg.push_retry_steps:
+                if not bool(_np(info["success"])[0]) and steps_left() >= cfg.push_retry_steps:
                     # it came to rest short (on the arm): press its inner face on down
                     phase = self._phase = "push"
                     g_final = GRIPPER_CLOSED
-                    face_depth = self._inner_face_depth(hinge_frame_link(part)[2])
                     tilt = self._push_tilt(part, frac(), face_depth)
                     self._push_open(part, target, axis_obj, do, frac, tilt)
             elif frac() * part.range >= cfg.push_min_angle:
@@ -657,8 +658,7 @@ class ScriptedSolver:
                 if switch is None or frac() < switch - 0.1:  # stalled before the plan's switch
                     tilt = self._push_tilt(part, frac(), face_depth)
                 self._push_open(part, target, axis_obj, do, frac, tilt)
-                left = cfg.max_steps - cfg.hold_steps - step
-                if frac() < u.open_goal + cfg.goal_margin and left >= cfg.push_retry_steps:
+                if frac() < u.open_goal + cfg.goal_margin and steps_left() >= cfg.push_retry_steps:
                     # stalled short (the arm at a joint limit): push again from here
                     # with the pusher held another way
                     others = [t for t in PUSH_TILTS if t != tilt]
