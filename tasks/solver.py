@@ -190,6 +190,7 @@ class ScriptedSolver:
         self._ik_failed = False  # the last step's inverse kinematics failed at every scale
         self._phase = ""
         self._reach: PandaReach | None = None  # the arm's kinematics, for planning a push
+        self._grip_axis: np.ndarray | None = None  # world axis of the held bar (twist escape)
 
     # ---- state
     def _tcp(self) -> np.ndarray:
@@ -253,7 +254,8 @@ class ScriptedSolver:
                 return scaled
         self._ik_failed = True
         if not self._phase.startswith(("push", "release")):
-            return action  # holding the handle: keep the grasp where it is
+            twisted = self._twist_escape(action) if self._phase.startswith("move") else None
+            return action if twisted is None else twisted  # else keep the grasp where it is
         # stuck at a stretched singularity: pull the hand in toward the shoulder a little
         tcp, base = self._tcp(), self._base()
         shoulder = base[:3, :3] @ np.array([0.0, 0.0, 0.333]) + base[:3, 3]
@@ -262,6 +264,28 @@ class ScriptedSolver:
         escape[:3] = 0.02 * d / max(np.linalg.norm(d), 1e-6) / POS_STEP
         escape[6:] = action[6:]
         return escape if self._ik_solvable(escape) else action
+
+    def _twist_escape(self, action: np.ndarray) -> np.ndarray | None:
+        """The pull ``action`` (shortened up to 4x) with the hand turned a little, about the
+        handle's bar first (the fingers pinch it, so the grasp holds), else about a base
+        axis, for an arm holding the handle at a wrist singularity: there (joint 5 near 0,
+        the Jacobian's smallest singular value ~0.01) the controller's damped IK stalls for
+        any step of the pull itself, shortened or not, but converges once the hand may turn
+        off it. None if no such step converges."""
+        base_R = self._base()[:3, :3]
+        axes = [base_R.T @ self._grip_axis] if self._grip_axis is not None else []
+        axes += list(np.eye(3))
+        for scale in (1.0, 0.5, 0.25):
+            for ax in axes:
+                for sign in (1.0, -1.0):
+                    twisted = action.copy()
+                    twisted[:3] *= scale
+                    rv = sign * abs(ROT_STEP) * ax / np.linalg.norm(ax)
+                    twisted[3:6] = Rotation.from_rotvec(rv).as_euler("XYZ") / ROT_STEP
+                    if self._ik_solvable(twisted):
+                        self._ik_failed = False
+                        return twisted
+        return None
 
     def _errors(self, goal: np.ndarray) -> tuple[float, float]:
         cur = self._tcp()
@@ -587,6 +611,9 @@ class ScriptedSolver:
                 if tcp_in_link[:3, 0] @ radial_l < 0:
                     press[0, 3] = -cfg.recess_press
             tcp_in_link = tcp_in_link @ press
+        # the axis the hand may turn about while holding: the bar the fingers pinch across
+        # (a knob pinched sideways: the vertical; a bare face: none)
+        sideways_knob = knob and abs((self._link()[:3, :3] @ normal_link)[2]) < 0.7
         # 4. move along the joint
         target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
         target = float(np.clip(target, 0.02, 0.98))
@@ -626,6 +653,9 @@ class ScriptedSolver:
             if len(history) > cfg.stall_steps and abs(f - history[-cfg.stall_steps - 1]) < 0.005:
                 break  # stalled (reach or joint limit, lost grip): settle and let success decide
             L = self._link()
+            self._grip_axis = (
+                None if bare else (np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link)
+            )
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)
             goal = joint_motion(part.joint_type, axis_obj, L[:3, 3], dq) @ L @ tcp_in_link
