@@ -39,13 +39,15 @@ A door's handle moves at most ``handle_speed`` per step (a wide fridge door's gr
 slips when swung at the revolute speed). Every action is checked against the arm
 controller's own inverse kinematics (CPU: Pinocchio CLIK, 100 iterations from the
 current joints; where it fails the controller holds the arm still, for good near a
-singularity): the step is halved until it converges, and away from the handle a
-stuck arm is drawn in toward its shoulder. A bottom-hinged door is let go with the
+singularity): the step is halved until it converges; holding the handle at a wrist
+singularity, where no shortened step converges, the step is sent with the hand turned
+0.1 rad about the held bar (the twist escape; the pinch holds, and the arm gets off the
+singularity); away from the handle a stuck arm is drawn in toward its shoulder. A bottom-hinged door is let go with the
 hand drawn out of its face, up and back toward the base.
 
 ``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
-distance, finger gap (a grasp that slipped closes to 0) and the arm's smallest
-joint-limit margin in ``ScriptedSolver.trace``. ``check_tasks(path)`` runs the
+distance, finger gap (a grasp that slipped closes to 0), the arm's smallest
+joint-limit margin and the number of twist escapes so far in ``ScriptedSolver.trace``. ``check_tasks(path)`` runs the
 solver on every movable part of every built asset under ``path`` and reports which
 ones the robot can really open.
 """
@@ -108,6 +110,7 @@ class SolverConfig:
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
+    twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
     trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
 
 
@@ -191,6 +194,7 @@ class ScriptedSolver:
         self._phase = ""
         self._reach: PandaReach | None = None  # the arm's kinematics, for planning a push
         self._grip_axis: np.ndarray | None = None  # world axis of the held bar (twist escape)
+        self._twists = 0  # steps sent with a twist escape so far
 
     # ---- state
     def _tcp(self) -> np.ndarray:
@@ -254,7 +258,10 @@ class ScriptedSolver:
                 return scaled
         self._ik_failed = True
         if not self._phase.startswith(("push", "release")):
-            twisted = self._twist_escape(action) if self._phase.startswith("move") else None
+            twisted = None
+            if self.cfg.twist_escape and self._phase.startswith("move"):
+                twisted = self._twist_escape(action)
+                self._twists += twisted is not None
             return action if twisted is None else twisted  # else keep the grasp where it is
         # stuck at a stretched singularity: pull the hand in toward the shoulder a little
         tcp, base = self._tcp(), self._base()
@@ -530,6 +537,7 @@ class ScriptedSolver:
         step = 0
         info: dict[str, Any] = {}
         self.trace: list[dict[str, Any]] = []
+        self._twists = 0
         phase = self._phase = "pregrasp"
 
         def frac() -> float:
@@ -555,6 +563,7 @@ class ScriptedSolver:
                         "finger_gap": round(self._finger_gap(), 4),
                         "arm_limit_margin": round(self._arm_limit_margin(), 3),
                         "arm_at_limit": int(np.argmin(self._arm_limit_margins())),
+                        "twists": self._twists,
                         "tcp_in_link": np.round(
                             (np.linalg.inv(self._link()) @ self._tcp())[:3, 3], 3
                         ).tolist(),

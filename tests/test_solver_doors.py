@@ -111,3 +111,58 @@ def test_candidate_bases_must_reach_the_closed_handle(wide_fridge) -> None:
     assert ok.any()
     assert (first[ok] <= FIRST_GRASP_REACH + 1e-9).all()
     assert (first > FIRST_GRASP_REACH).sum() > 0
+
+
+# a fridge door whose pull passes a wrist singularity (joint 5 through 0) at 0.75 open
+SINGULAR_FRIDGE = ("refrigerator", 303, "door_0")
+
+
+@pytest.fixture(scope="module")
+def singular_fridge(tmp_path_factory: pytest.TempPathFactory):
+    from asset_pipeline.build import build_asset
+    from generator.articulated import save_bundle
+    from generator.procedural import object_id, sample_object
+    from sim_envs import FolderSource
+
+    category, seed, _ = SINGULAR_FRIDGE
+    root = tmp_path_factory.mktemp("singular_fridge")
+    build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
+    return next(iter(FolderSource(root)))
+
+
+def _solve_door(record, part: str, **config):
+    import gymnasium as gym
+
+    from sim_envs.catalog import ListSource
+    from tasks.solver import ScriptedSolver, SolverConfig
+
+    torch.set_num_threads(1)
+    env = gym.make(
+        "OpenDoor-v0",
+        assets=ListSource([record.path]),
+        target_part=part,
+        obs_mode="state",
+        control_mode="pd_ee_delta_pose",
+        sim_backend="physx_cpu",
+        render_backend="none",
+    )
+    try:
+        env.reset(seed=0)
+        solver = ScriptedSolver(env, SolverConfig(trace=True, **config))
+        return solver.solve(), solver.trace
+    finally:
+        env.close()
+
+
+def test_twist_escape_pulls_through_a_wrist_singularity(singular_fridge) -> None:
+    """Without the escape the arm, holding the handle, stalls at the singularity just
+    short of the goal (the controller's IK converges for no shortened step); with it the
+    hand turns a little about the bar and the pull alone opens the door."""
+    part = SINGULAR_FRIDGE[2]
+    stuck, stuck_trace = _solve_door(singular_fridge, part, twist_escape=False)
+    assert not stuck.success and stuck_trace[-1]["twists"] == 0, stuck
+    res, trace = _solve_door(singular_fridge, part)
+    assert res.success, res
+    assert trace[-1]["twists"] > 0
+    phases = {t["phase"] for t in trace}
+    assert not any(p.startswith("push") for p in phases), sorted(phases)
