@@ -108,6 +108,7 @@ class SolverConfig:
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
     push_retry_steps: int = 100  # steps a second push needs; fewer left: no retry
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
+    push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
@@ -387,6 +388,14 @@ class ScriptedSolver:
             self._phase = "push:home"
             home = turned.copy()
             home[:3, 3] = self._base()[:3, :3] @ READY_TCP + self._base()[:3, 3]
+            # a robot standing behind the opened door's plane would take the hand through
+            # the door (sweeping it shut): keep the turn in front of its outer face
+            L = self._link()
+            n_w = L[:3, :3] @ normal_l
+            handle_w = L[:3, :3] @ np.asarray(part.handle_link, dtype=float) + L[:3, 3]
+            behind = cfg.push_home_clearance - n_w @ (home[:3, 3] - handle_w)
+            if behind > 0:
+                home[:3, 3] += n_w * behind
             self._go(lambda: home, GRIPPER_CLOSED, do, tol=0.03, budget=40, rot_tol=0.1)
             log.debug("push: turned at home to %.2f rad off", self._errors(home)[1])
         start = frac()
