@@ -385,9 +385,8 @@ class ArticulatedPartEnv(BaseEnv):
 
     def handle_positions(self) -> torch.Tensor:
         """(N, 3) world position of each env's target handle."""
-        return handle_world_positions(
-            self.target_link.pose.to_transformation_matrix(), self.handle_link_pos
-        )
+        pose = self.target_link.pose
+        return handle_world_positions(pose.p, pose.q, self.handle_link_pos)
 
     def joint_axis_world(self) -> torch.Tensor:
         return rotate_z(self.joint_axis_obj, self.object_yaw)
@@ -417,15 +416,40 @@ class ArticulatedPartEnv(BaseEnv):
         """(N,) both fingers press on the target part: ManiSkill's ``Panda.is_grasping``
         (force and direction per finger), whose direction test is skipped when no env
         has both fingers touching the part (most steps; it is a third of a CPU step)."""
-        link = self.target_link
-        forces = [
-            torch.linalg.norm(self.scene.get_pairwise_contact_forces(finger, link), dim=1)
-            for finger in (self.agent.finger1_link, self.agent.finger2_link)
-        ]
-        touching = (forces[0] >= min_force) & (forces[1] >= min_force)
+        fingers = (self.agent.finger1_link, self.agent.finger2_link)
+        forces = self._finger_forces(fingers, self.target_link)
+        norms = [torch.linalg.norm(f, dim=1) for f in forces]
+        touching = (norms[0] >= min_force) & (norms[1] >= min_force)
         if not bool(touching.any()):
             return touching
-        return touching & self.agent.is_grasping(link, min_force=min_force)
+        # each finger pushes the part along its closing direction (within 85 degrees)
+        for finger, force, norm, sign in zip(fingers, forces, norms, (1.0, -1.0), strict=True):
+            opening = sign * finger.pose.to_transformation_matrix()[..., :3, 1]
+            cos = (opening * force).sum(dim=1) / torch.clamp(norm, min=1e-9)
+            touching &= cos >= float(np.cos(np.deg2rad(85.0)))
+        return touching
+
+    def _finger_forces(self, fingers: tuple[Link, Link], link: Link) -> list[torch.Tensor]:
+        """(N, 3) contact force of each finger on ``link``: ManiSkill's pairwise query on
+        the GPU; on a CPU scene one pass over its contacts for both fingers (the query
+        walks the contact list once per pair)."""
+        if self.gpu_sim_enabled:
+            return [self.scene.get_pairwise_contact_forces(f, link) for f in fingers]
+        part = link._bodies[0].entity
+        ends = [f._bodies[0].entity for f in fingers]
+        impulses = np.zeros((2, 3))
+        for contact in self.scene.px.get_contacts():
+            e0, e1 = contact.bodies[0].entity, contact.bodies[1].entity
+            for k, end in enumerate(ends):
+                if e0 == end and e1 == part:
+                    sign = 1.0  # the impulse acts on the first body
+                elif e1 == end and e0 == part:
+                    sign = -1.0
+                else:
+                    continue
+                impulses[k] += sign * np.sum([pt.impulse for pt in contact.points], axis=0)
+        forces = torch.as_tensor(impulses / self.scene.px.timestep, dtype=torch.float32)
+        return [forces[k : k + 1].to(self.device) for k in range(2)]
 
     def _get_obs_extra(self, info: dict) -> dict[str, torch.Tensor]:
         obs = dict(tcp_pose=self.agent.tcp.pose.raw_pose)

@@ -210,3 +210,19 @@ def test_joint_names_match_by_suffix() -> None:
     assert match_joint_name("scene-0-object-0_joint_door_10", names) == "joint_door_10"
     assert match_joint_name("scene-0-object-0_xjoint_door_0", names) is None
     assert match_joint_name("joint_lid_0", names) is None
+
+
+def test_handle_world_positions_rotates_by_the_link_quaternion() -> None:
+    """Hand-computed: a link at (1, 0, 0.5) turned 90 degrees about +z carries the
+    link-frame point (0.1, 0, 0.2) to (1, 0.1, 0.7); a second link unrotated."""
+    import numpy as np
+    import torch
+
+    from sim_envs.scene import handle_world_positions
+
+    h = float(np.sqrt(0.5))
+    p = torch.tensor([[1.0, 0.0, 0.5], [0.0, 0.0, 0.0]])
+    q = torch.tensor([[h, 0.0, 0.0, h], [1.0, 0.0, 0.0, 0.0]])
+    v = torch.tensor([[0.1, 0.0, 0.2], [0.3, -0.2, 0.1]])
+    out = handle_world_positions(p, q, v).numpy()
+    np.testing.assert_allclose(out, [[1.0, 0.1, 0.7], [0.3, -0.2, 0.1]], atol=1e-6)
