@@ -672,7 +672,9 @@ class ScriptedSolver:
                 break  # stalled (reach or joint limit, lost grip): settle and let success decide
             L = self._link()
             self._grip_axis = (
-                None if bare else (np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link)
+                None
+                if bare
+                else (np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link)
             )
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)

@@ -12,17 +12,46 @@ import tasks  # noqa: F401  (registers the envs)
 WIDE_FRIDGE = ("refrigerator", 201, "door_0")
 
 
-@pytest.fixture(scope="module")
-def wide_fridge(tmp_path_factory: pytest.TempPathFactory):
+def _build(tmp_path_factory: pytest.TempPathFactory, category: str, seed: int):
+    """One procedural object built into a fresh folder: its asset record."""
     from asset_pipeline.build import build_asset
     from generator.articulated import save_bundle
     from generator.procedural import object_id, sample_object
     from sim_envs import FolderSource
 
-    category, seed, _ = WIDE_FRIDGE
-    root = tmp_path_factory.mktemp("wide_fridge")
+    root = tmp_path_factory.mktemp(f"{category}_{seed}")
     build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
     return next(iter(FolderSource(root)))
+
+
+@pytest.fixture(scope="module")
+def wide_fridge(tmp_path_factory: pytest.TempPathFactory):
+    return _build(tmp_path_factory, *WIDE_FRIDGE[:2])
+
+
+def _solve_door(record, part: str, **config):
+    """The solver on one door of ``record`` (CPU, seed 0): its result and per-step trace."""
+    import gymnasium as gym
+
+    from sim_envs.catalog import ListSource
+    from tasks.solver import ScriptedSolver, SolverConfig
+
+    torch.set_num_threads(1)
+    env = gym.make(
+        "OpenDoor-v0",
+        assets=ListSource([record.path]),
+        target_part=part,
+        obs_mode="state",
+        control_mode="pd_ee_delta_pose",
+        sim_backend="physx_cpu",
+        render_backend="none",
+    )
+    try:
+        env.reset(seed=0)
+        solver = ScriptedSolver(env, SolverConfig(trace=True, **config))
+        return solver.solve(), solver.trace
+    finally:
+        env.close()
 
 
 def test_push_waypoints_go_round_the_free_edge(wide_fridge) -> None:
@@ -62,28 +91,8 @@ def test_push_waypoints_go_round_the_free_edge(wide_fridge) -> None:
 def test_solver_pulls_then_pushes_a_wide_fridge_door(wide_fridge) -> None:
     """The robot cannot follow the handle round the whole arc: it pulls the door ajar,
     lets go and pushes the inner face on to the goal, in CPU simulation."""
-    import gymnasium as gym
-
-    from sim_envs.catalog import ListSource
-    from tasks.solver import ScriptedSolver, SolverConfig
-
-    torch.set_num_threads(1)
-    env = gym.make(
-        "OpenDoor-v0",
-        assets=ListSource([wide_fridge.path]),
-        target_part=WIDE_FRIDGE[2],
-        obs_mode="state",
-        control_mode="pd_ee_delta_pose",
-        sim_backend="physx_cpu",
-        render_backend="none",
-    )
-    try:
-        env.reset(seed=0)
-        solver = ScriptedSolver(env, SolverConfig(trace=True))
-        res = solver.solve()
-    finally:
-        env.close()
-    phases = [t["phase"] for t in solver.trace]
+    res, trace = _solve_door(wide_fridge, WIDE_FRIDGE[2])
+    phases = [t["phase"] for t in trace]
     assert "push:press" in phases and "push:abort" not in phases, sorted(set(phases))
     assert res.success, res
 
@@ -119,39 +128,7 @@ SINGULAR_FRIDGE = ("refrigerator", 303, "door_0")
 
 @pytest.fixture(scope="module")
 def singular_fridge(tmp_path_factory: pytest.TempPathFactory):
-    from asset_pipeline.build import build_asset
-    from generator.articulated import save_bundle
-    from generator.procedural import object_id, sample_object
-    from sim_envs import FolderSource
-
-    category, seed, _ = SINGULAR_FRIDGE
-    root = tmp_path_factory.mktemp("singular_fridge")
-    build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
-    return next(iter(FolderSource(root)))
-
-
-def _solve_door(record, part: str, **config):
-    import gymnasium as gym
-
-    from sim_envs.catalog import ListSource
-    from tasks.solver import ScriptedSolver, SolverConfig
-
-    torch.set_num_threads(1)
-    env = gym.make(
-        "OpenDoor-v0",
-        assets=ListSource([record.path]),
-        target_part=part,
-        obs_mode="state",
-        control_mode="pd_ee_delta_pose",
-        sim_backend="physx_cpu",
-        render_backend="none",
-    )
-    try:
-        env.reset(seed=0)
-        solver = ScriptedSolver(env, SolverConfig(trace=True, **config))
-        return solver.solve(), solver.trace
-    finally:
-        env.close()
+    return _build(tmp_path_factory, *SINGULAR_FRIDGE[:2])
 
 
 def test_twist_escape_pulls_through_a_wrist_singularity(singular_fridge) -> None:
