@@ -392,6 +392,13 @@ def check_tasks_cmd(
     from tasks.solver import check_tasks, summarize
 
     results = check_tasks(path, seed=seed, category=category)
+    if not results:
+        console.print(
+            f"[red]{path}: no movable parts to check[/red] (no built assets there, none of "
+            "the category, or every asset's report.json says it failed validation: "
+            "those are skipped)"
+        )
+        raise typer.Exit(1)
     table = Table(title="pact check-tasks")
     for col in ("asset", "part", "task", "opened", "fraction", "seconds", "reason"):
         table.add_column(col)

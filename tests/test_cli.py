@@ -103,3 +103,16 @@ def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
     html = (out / "index.html").read_text()
     for name in names:
         assert name in html
+
+
+def test_check_tasks_says_when_there_is_nothing_to_check(tmp_path: Path) -> None:
+    """A folder whose only asset failed validation is skipped: the command says so and
+    exits non-zero instead of reporting 'opened 0 of 0 parts'."""
+    asset = tmp_path / "cabinet_x"
+    asset.mkdir()
+    (asset / "asset.json").write_text("{}")
+    (asset / "report.json").write_text(json.dumps({"status": "failed"}))
+    result = runner.invoke(app, ["check-tasks", str(tmp_path)])
+    assert result.exit_code == 1
+    assert "no movable parts to check" in result.output
+    assert "0 of 0" not in result.output
