@@ -41,15 +41,16 @@ controller's own inverse kinematics (CPU: Pinocchio CLIK, 100 iterations from th
 current joints; where it fails the controller holds the arm still, for good near a
 singularity): the step is halved until it converges; holding the handle at a wrist
 singularity, where no shortened step converges, the step is sent with the hand turned
-0.1 rad about the held bar (the twist escape; the pinch holds, and the arm gets off the
-singularity); away from the handle a stuck arm is drawn in toward its shoulder. A bottom-hinged door is let go with the
-hand drawn out of its face, up and back toward the base.
+0.1 rad about the held bar (the twist escape; the pinch holds, and the arm gets off
+the singularity); away from the handle a stuck arm is drawn in toward its shoulder.
+A bottom-hinged door is let go with the hand drawn out of its face, up and back
+toward the base.
 
 ``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
 distance, finger gap (a grasp that slipped closes to 0), the arm's smallest
-joint-limit margin and the number of twist escapes so far in ``ScriptedSolver.trace``. ``check_tasks(path)`` runs the
-solver on every movable part of every built asset under ``path`` and reports which
-ones the robot can really open.
+joint-limit margin and the number of twist escapes so far in ``ScriptedSolver.trace``.
+``check_tasks(path)`` runs the solver on every movable part of every built asset
+under ``path`` and reports which ones the robot can really open.
 """
 
 from __future__ import annotations
@@ -546,7 +547,7 @@ class ScriptedSolver:
         step = 0
         info: dict[str, Any] = {}
         self.trace: list[dict[str, Any]] = []
-        self._twists = 0
+        self._twists, self._grip_axis = 0, None
         phase = self._phase = "pregrasp"
 
         def frac() -> float:
