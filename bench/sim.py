@@ -41,9 +41,20 @@ def build_procedural(
     return out
 
 
-def _make(assets: str, obs_mode: str, control_mode: str, reconfiguration_freq: int = 1):
+def _make(
+    assets: str,
+    obs_mode: str,
+    control_mode: str,
+    reconfiguration_freq: int = 1,
+    torch_threads: int = 1,
+):
     def thunk():
+        import torch
+
         from tasks.train import make_cpu_env
+
+        if torch_threads > 0:  # as training's env workers (tasks.train.Args.torch_threads)
+            torch.set_num_threads(torch_threads)
 
         return make_cpu_env(
             "OpenDrawer-v0",
@@ -64,8 +75,12 @@ def measure(
     steps: int,
     control_mode: str,
     reconfiguration_freq: int = 1,
+    torch_threads: int = 1,
 ) -> dict:
-    fns = [_make(assets, obs_mode, control_mode, reconfiguration_freq) for _ in range(procs)]
+    fns = [
+        _make(assets, obs_mode, control_mode, reconfiguration_freq, torch_threads)
+        for _ in range(procs)
+    ]
     mode = gym.vector.AutoresetMode.SAME_STEP
     venv = (
         gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
@@ -138,6 +153,12 @@ def main() -> None:
         default=[1, 10],
         help="reload an asset every k episodes (state runs); rgb runs use the first",
     )
+    ap.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="torch threads per env process, as in training (0: torch's default, one per core)",
+    )
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         assets = a.assets or str(build_procedural(Path(tmp)))
@@ -145,13 +166,24 @@ def main() -> None:
         for k in a.reconfiguration_freqs:
             for cm in a.control_modes:
                 for p in a.procs:
-                    results.append(measure_repeated(a.repeats, assets, "state", p, a.steps, cm, k))
+                    results.append(
+                        measure_repeated(
+                            a.repeats, assets, "state", p, a.steps, cm, k, a.torch_threads
+                        )
+                    )
         if not a.no_rgb:
             k = a.reconfiguration_freqs[0]
             for p in a.procs:
                 results.append(
                     measure_repeated(
-                        a.repeats, assets, "rgb", p, a.rgb_steps, a.control_modes[0], k
+                        a.repeats,
+                        assets,
+                        "rgb",
+                        p,
+                        a.rgb_steps,
+                        a.control_modes[0],
+                        k,
+                        a.torch_threads,
                     )
                 )
     print(
@@ -161,6 +193,7 @@ def main() -> None:
                 "task": "OpenDrawer-v0",
                 "max_episode_steps": 100,
                 "note": "random actions; an asset is reloaded every reconfiguration_freq episodes",
+                "torch_threads_per_process": a.torch_threads,
                 "results": results,
             },
             indent=2,
