@@ -49,12 +49,9 @@ def _make(
     torch_threads: int = 1,
 ):
     def thunk():
-        import torch
+        from tasks.train import make_cpu_env, set_torch_threads
 
-        from tasks.train import make_cpu_env
-
-        if torch_threads > 0:  # as training's env workers (tasks.train.Args.torch_threads)
-            torch.set_num_threads(torch_threads)
+        set_torch_threads(torch_threads)  # as training's env workers (Args.torch_threads)
 
         return make_cpu_env(
             "OpenDrawer-v0",

@@ -48,7 +48,8 @@ toward the base.
 
 ``SolverConfig(trace=True)`` records per step the phase, open fraction, tcp-handle
 distance, finger gap (a grasp that slipped closes to 0), the arm's smallest
-joint-limit margin and the number of twist escapes so far in ``ScriptedSolver.trace``.
+joint-limit margin and the number of twist escapes so far in ``SolveResult.trace``
+(also ``ScriptedSolver.trace``).
 ``check_tasks(path)`` runs the solver on every movable part of every built asset
 under ``path`` and reports which ones the robot can really open.
 """
@@ -57,7 +58,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -113,7 +114,7 @@ class SolverConfig:
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
-    trace: bool = False  # record per-step diagnostics in ScriptedSolver.trace
+    trace: bool = False  # record per-step diagnostics in SolveResult.trace
 
 
 @dataclass
@@ -123,6 +124,7 @@ class SolveResult:
     final_fraction: float
     phase: str  # last phase reached: pregrasp, approach, grasp, move, hold
     reason: str = ""
+    trace: list[dict[str, Any]] = field(default_factory=list, repr=False)  # if config.trace
 
 
 def _pose_matrix(raw: Any) -> np.ndarray:
@@ -726,7 +728,12 @@ class ScriptedSolver:
         success = bool(_np(info.get("success", [False]))[0]) if info else False
         reason = "" if success else f"final open fraction {frac():.2f}"
         return SolveResult(
-            success=success, steps=step, final_fraction=frac(), phase=phase, reason=reason
+            success=success,
+            steps=step,
+            final_fraction=frac(),
+            phase=phase,
+            reason=reason,
+            trace=self.trace,
         )
 
 

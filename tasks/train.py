@@ -228,7 +228,7 @@ def make_cpu_env(
 
 def _env_fn(args: Args, rank: int):
     def thunk() -> gym.Env:
-        _set_threads(args.torch_threads)
+        set_torch_threads(args.torch_threads)
         return make_cpu_env(
             args.env_id,
             args.assets,
@@ -247,7 +247,8 @@ def _env_fn(args: Args, rank: int):
     return thunk
 
 
-def _set_threads(n: int) -> None:
+def set_torch_threads(n: int) -> None:
+    """Torch's intra-op threads for this process (``n`` <= 0: leave torch's default)."""
     if n > 0:
         import torch
 
@@ -545,7 +546,7 @@ def train(args: Args) -> dict[str, Any]:
 
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    _set_threads(args.torch_threads)
+    set_torch_threads(args.torch_threads)
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)

@@ -31,27 +31,11 @@ def wide_fridge(tmp_path_factory: pytest.TempPathFactory):
 
 def _solve_door(record, part: str, **config):
     """The solver on one door of ``record`` (CPU, seed 0): its result and per-step trace."""
-    import gymnasium as gym
-
-    from sim_envs.catalog import ListSource
-    from tasks.solver import ScriptedSolver, SolverConfig
+    from tasks.solver import SolverConfig, solve_part
 
     torch.set_num_threads(1)
-    env = gym.make(
-        "OpenDoor-v0",
-        assets=ListSource([record.path]),
-        target_part=part,
-        obs_mode="state",
-        control_mode="pd_ee_delta_pose",
-        sim_backend="physx_cpu",
-        render_backend="none",
-    )
-    try:
-        env.reset(seed=0)
-        solver = ScriptedSolver(env, SolverConfig(trace=True, **config))
-        return solver.solve(), solver.trace
-    finally:
-        env.close()
+    res, _ = solve_part(record, part, config=SolverConfig(trace=True, **config))
+    return res, res.trace
 
 
 def test_push_waypoints_go_round_the_free_edge(wide_fridge) -> None:
