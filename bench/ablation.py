@@ -1,7 +1,7 @@
 """PAct's ablations on the fixed test split (paper sec. 5.3). Prints JSON, then a table.
 
     .venv/bin/python bench/ablation.py [--voxels stage1|gt] [--per-category 6]
-        [--split-dir runs/test_split] [--limit N] [--weights FOLDER]
+        [--split-dir runs/test_split] [--limit N] [--weights FOLDER] [--candidates N]
 
 Variants (one generation per object; the variants share its geometry and differ only in
 the articulation read-out):
@@ -71,17 +71,20 @@ def main() -> None:
     ap.add_argument(
         "--threads", type=int, default=1, help="torch threads (1 is fastest on 2 busy cores)"
     )
+    ap.add_argument(
+        "--candidates", type=int, default=8, help="stage-1 samples per image (with a mask)"
+    )
     args = ap.parse_args()
     import torch
 
     torch.set_num_threads(args.threads)
 
-    from generator.pact.generate import PActGenerator
+    from generator.pact.generate import WEIGHTS_DIR, PActGenerator
 
     ids = write_test_split(args.split_dir, args.per_category)
     if args.limit:
         ids = ids[: args.limit]
-    gen = PActGenerator.load(args.weights) if args.weights else PActGenerator.default()
+    gen = PActGenerator.load(args.weights or WEIGHTS_DIR / "small", candidates=args.candidates)
     variants: list[tuple[str, int, str]] = [("S=1", 1, "stage2"), ("S=15", 15, "stage2"),
                                             ("S=20", 20, "stage2")]  # fmt: skip
     if args.voxels == "stage1" and gen.stage1_head is not None:
@@ -118,6 +121,7 @@ def main() -> None:
         "generated": len(seconds),
         "seconds_per_object_median": float(np.median(seconds)) if seconds else None,
         "generator_version": gen.version,
+        "stage1_candidates": args.candidates,
         "variants": results,
         "failed": failed,
     }

@@ -122,9 +122,16 @@ class PActGenerator:
         self.timings: dict[str, float] = {}
 
     @classmethod
-    def load(cls, folder: str | Path, device: str | None = None, **kwargs: Any) -> PActGenerator:
+    def load(
+        cls,
+        folder: str | Path,
+        device: str | None = None,
+        candidates: int = 8,
+        **kwargs: Any,
+    ) -> PActGenerator:
         """Stage 2 from ``folder/slat_vae`` and ``folder/stage2/{image_encoder,flow,head}``;
-        stage 1 from ``folder/ss_vae`` + ``folder/stage1`` when present."""
+        stage 1 from ``folder/ss_vae`` + ``folder/stage1`` when present, drawing
+        ``candidates`` samples per image with a part mask (``stage1_generator``)."""
         folder = Path(folder)
         device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         models = {"vae": _load_fp32(folder / "slat_vae", device)}
@@ -142,7 +149,9 @@ class PActGenerator:
         if (folder / "stage1").is_dir() and (folder / "ss_vae").is_dir():
             from .stage1_generator import Stage1Generator
 
-            stage1 = Stage1Generator.load(folder, device=device, seed=kwargs.get("seed", 0))
+            stage1 = Stage1Generator.load(
+                folder, device=device, seed=kwargs.get("seed", 0), candidates=candidates
+            )
         else:
             log.warning("%s: no stage-1 checkpoints; only generate_from_occupancy works", folder)
         s1_head = None

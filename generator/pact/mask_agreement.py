@@ -1,0 +1,126 @@
+"""How well a sample of part voxels agrees with the input's part mask (render and compare).
+
+Stage 1 samples part structures from noise; with the small model, samples for the same
+image and mask differ a lot (a drawer in the wrong row, a part left empty, the base
+swallowing a door). :func:`agreement` scores one sample against the 2-D part mask the
+user gave: the sample's surface voxels are rendered as a part-id image (orthographic,
+nearest voxel wins) from each of a grid of views round the front of the object
+(azimuth +-60 degrees, elevation 0-40 degrees: the range in which the training renders
+and photos of furniture show the front), both that render and the mask are cropped to
+their own silhouette's bounding box and resampled to ``G`` x ``G``, and the score is the
+best view's mean over the mask's part ids of the per-id IoU. Cropping each to its own box
+removes scale, position and aspect (the photo's camera distance and field of view are
+unknown), so the score compares the layout of the parts, not the object's size.
+
+The stage-1 generator (``stage1_generator.Stage1Generator``) draws several samples per
+image and keeps the one that realizes the mask's parts and agrees with it best. Ground
+truth part voxels score 0.66 on average against the masks of the 42 test-split renders
+(0.32-0.83; the renders are perspective, the score's views orthographic); against the
+mask of another object of the same category, 0.49. About 0.15 s per sample on one core.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GRID = 40  # G: the side of the compared id images, in pixels
+AZIMUTHS_DEG = (-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0)
+ELEVATIONS_DEG = (0.0, 10.0, 20.0, 30.0, 40.0)
+
+
+def view_rotation(azimuth: float, elevation: float) -> np.ndarray:
+    """(3, 3) rows: image right, image down, towards the camera, for a camera at
+    ``azimuth`` (radians, about +z from +x) and ``elevation`` (radians) looking at the
+    origin with +z up (the object frame: front +x)."""
+    d = np.array(
+        [
+            np.cos(elevation) * np.cos(azimuth),
+            np.cos(elevation) * np.sin(azimuth),
+            np.sin(elevation),
+        ]
+    )
+    right = np.cross(-d, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -d)
+    return np.stack([right, -up, d])
+
+
+VIEWS = tuple(
+    view_rotation(np.radians(a), np.radians(e)) for e in ELEVATIONS_DEG for a in AZIMUTHS_DEG
+)
+_SPLAT = np.stack(np.meshgrid(*[(-0.3, 0.3)] * 3, indexing="ij"), -1).reshape(-1, 3)
+
+
+def surface_points(occ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Part occupancies (T, R, R, R) -> points (N, 3) in voxel units filling the voxels
+    on the surface of their union (8 per voxel) and their part ids (N,) (slot + 1)."""
+    occ = np.asarray(occ, bool)
+    union = occ.any(axis=0)
+    p = np.pad(union, 1)
+    inner = p[1:-1, 1:-1, 1:-1].copy()
+    for axis in range(3):
+        for shift in (-1, 1):
+            inner &= np.roll(p, shift, axis=axis)[1:-1, 1:-1, 1:-1]
+    shell = union & ~inner
+    labels = np.zeros(union.shape, np.int64)
+    for k in range(len(occ)):
+        labels[occ[k]] = k + 1
+    idx = np.argwhere(shell)
+    pts = (idx[:, None, :] + 0.5 + _SPLAT[None]).reshape(-1, 3)
+    return pts, np.repeat(labels[shell], len(_SPLAT))
+
+
+def render_ids(
+    points: np.ndarray, ids: np.ndarray, view: np.ndarray, grid: int = GRID
+) -> np.ndarray:
+    """(grid, grid) part-id image (0 background) of ``points`` seen along ``view``
+    (``view_rotation``), orthographic, cropped to the points' bounding box."""
+    q = points @ view.T
+    lo, hi = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+    ij = ((q[:, :2] - lo) / np.maximum(hi - lo, 1e-9) * grid).astype(np.int64)
+    ij = np.clip(ij, 0, grid - 1)
+    order = np.argsort(q[:, 2], kind="stable")  # far to near: the nearest is written last
+    img = np.zeros((grid, grid), np.int64)
+    img[ij[order, 1], ij[order, 0]] = ids[order]
+    return img
+
+
+def mask_ids(mask: np.ndarray, max_id: int, grid: int = GRID) -> np.ndarray:
+    """A part mask (H, W) ids -> (grid, grid) ids cropped to its silhouette's bounding box
+    (nearest sampling); ids above ``max_id`` (parts the model has no slot for) count as
+    the base (1), as the stage-1 inputs treat them. Raises ValueError for an empty mask."""
+    mask = np.asarray(mask)
+    rows, cols = np.nonzero(mask)
+    if len(rows) == 0:
+        raise ValueError("the part mask is empty (all background)")
+    m = mask[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1].astype(np.int64)
+    r = (np.arange(grid) + 0.5) / grid
+    out = m[(r * m.shape[0]).astype(np.int64)][:, (r * m.shape[1]).astype(np.int64)]
+    out[out > max_id] = 1
+    return out
+
+
+def id_iou(a: np.ndarray, b: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Per id in ``ids`` the IoU of the pixels labelled with it in ``a`` and in ``b``."""
+    n = int(max(a.max(), b.max(), ids.max())) + 1
+    inter = np.bincount(a[a == b], minlength=n)
+    union = np.bincount(a.ravel(), minlength=n) + np.bincount(b.ravel(), minlength=n) - inter
+    return inter[ids] / np.maximum(union[ids], 1)
+
+
+def agreement(
+    occ: np.ndarray,
+    mask: np.ndarray,
+    views: tuple[np.ndarray, ...] = VIEWS,
+    grid: int = GRID,
+) -> float:
+    """Score in [0, 1] of part occupancies (T, R, R, R) (slot k <-> mask id k + 1) against
+    a part mask (H, W): the best view's mean per-id IoU over the ids the mask shows (module
+    docstring). 0 when the occupancies are empty."""
+    target = mask_ids(mask, len(occ), grid)
+    ids = np.unique(target)
+    ids = ids[ids > 0]
+    pts, labels = surface_points(occ)
+    if len(pts) == 0 or len(ids) == 0:
+        return 0.0
+    return max(float(id_iou(render_ids(pts, labels, v, grid), target, ids).mean()) for v in views)
