@@ -178,6 +178,36 @@ def test_flow_resume_is_bit_exact(tiny, trained_vae, tmp_path):
     assert any(r.get("flow_val/mse") for r in rows)
 
 
+def test_flow_init_from_starts_at_the_given_weights_and_statistics(tiny, trained_vae, tmp_path):
+    data, cfg = tiny
+    vae_dir = str(trained_vae / "vae/checkpoint/ss_vae")
+    torch.manual_seed(123)  # not the trainer's seed 0: different initial weights
+    init_models = build_stage1(config_from_dict(TINY))
+    init_models.pop("vae")
+    stats = LatentStats((0.5, -0.25), (2.0, 0.5))
+    save_stage1(init_models, config_from_dict(TINY), tmp_path / "init", stats)
+    kw = dict(FAST, vae_dir=vae_dir, lr=1e-9)  # one step that barely moves the weights
+    run = train_stage1(
+        data, tmp_path / "a", str(cfg), "flow", steps=1, init_from=str(tmp_path / "init"), **kw
+    )
+    scratch = train_stage1(data, tmp_path / "b", str(cfg), "flow", steps=1, **kw)
+    init, got, fresh = _weights(init_models), _weights(run.models), _weights(scratch.models)
+    for k in init:
+        torch.testing.assert_close(got[k], init[k], atol=1e-6, rtol=0)
+    assert any((fresh[k] - init[k]).abs().max() > 1e-3 for k in init)  # seed 0 differs
+    _, _, saved_stats = load_stage1(tmp_path / "a/flow/checkpoint/stage1")
+    assert saved_stats == stats  # the latents are normalized as the weights were trained
+    other = config_from_dict({**TINY, "flow": {**TINY["flow"], "width": 64}})
+    torch.manual_seed(0)
+    wide = build_stage1(other)
+    wide.pop("vae")
+    save_stage1(wide, other, tmp_path / "wide", stats)
+    with pytest.raises(ValueError, match="flow config differs"):
+        train_stage1(
+            data, tmp_path / "c", str(cfg), "flow", steps=1, init_from=str(tmp_path / "wide"), **kw
+        )
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -249,6 +279,17 @@ def test_export_and_generate_valid_object(tiny, trained_vae, tmp_path):
         assert gen.timings["stage1"] > 0
         lo, hi = obj.bounds()
         assert (lo >= -0.55).all() and (hi <= 0.55).all()
+    # with a mask, 8 samples per image are drawn and one kept: one row of occupancies and
+    # features per image, the same for the same seed
+    assert gen.candidates == 8
+    feats: list[torch.Tensor] = []
+    occ, exists = gen.predict_parts_batch(
+        [image, image], [mask, mask], lambda i, t, f: feats.append(f)
+    )
+    assert occ.shape[0] == exists.shape[0] == 2
+    assert len(feats) == gen.sampler.steps and all(f.shape[0] == 2 for f in feats)
+    again, _ = gen.predict_parts_batch([image, image], [mask, mask])
+    assert np.array_equal(again, occ)
 
 
 def test_occupancy_mesh_matches_the_grid():

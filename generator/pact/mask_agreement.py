@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 GRID = 40  # G: the side of the compared id images, in pixels
+PIXEL_MIN = 0.7  # voxels: the smallest pixel a sample is rendered with
 AZIMUTHS_DEG = (-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0)
 ELEVATIONS_DEG = (0.0, 10.0, 20.0, 30.0, 40.0)
 
@@ -48,6 +49,8 @@ def view_rotation(azimuth: float, elevation: float) -> np.ndarray:
 VIEWS = tuple(
     view_rotation(np.radians(a), np.radians(e)) for e in ELEVATIONS_DEG for a in AZIMUTHS_DEG
 )
+# points per voxel: its centre +-0.3 along each axis (at most 0.6 voxels apart), so a
+# pixel at least PIXEL_MIN voxels wide always holds one
 _SPLAT = np.stack(np.meshgrid(*[(-0.3, 0.3)] * 3, indexing="ij"), -1).reshape(-1, 3)
 
 
@@ -73,16 +76,20 @@ def surface_points(occ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def render_ids(
     points: np.ndarray, ids: np.ndarray, view: np.ndarray, grid: int = GRID
 ) -> np.ndarray:
-    """(grid, grid) part-id image (0 background) of ``points`` seen along ``view``
-    (``view_rotation``), orthographic, cropped to the points' bounding box."""
+    """(grid, grid) part-id image (0 background) of ``points`` (``surface_points``) seen
+    along ``view`` (``view_rotation``), orthographic, cropped to the points' bounding box.
+    Rendered at no more than one pixel per ``PIXEL_MIN`` voxels along each image axis
+    (so the splatted points leave no holes), then resampled to ``grid``."""
     q = points @ view.T
     lo, hi = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
-    ij = ((q[:, :2] - lo) / np.maximum(hi - lo, 1e-9) * grid).astype(np.int64)
-    ij = np.clip(ij, 0, grid - 1)
+    res = np.clip(np.ceil((hi - lo) / PIXEL_MIN), 1, grid).astype(np.int64)  # (u, v)
+    ij = ((q[:, :2] - lo) / np.maximum(hi - lo, 1e-9) * res).astype(np.int64)
+    ij = np.minimum(ij, res - 1)
     order = np.argsort(q[:, 2], kind="stable")  # far to near: the nearest is written last
-    img = np.zeros((grid, grid), np.int64)
+    img = np.zeros((res[1], res[0]), np.int64)
     img[ij[order, 1], ij[order, 0]] = ids[order]
-    return img
+    r = (np.arange(grid) + 0.5) / grid
+    return img[(r * res[1]).astype(np.int64)][:, (r * res[0]).astype(np.int64)]
 
 
 def mask_ids(mask: np.ndarray, max_id: int, grid: int = GRID) -> np.ndarray:

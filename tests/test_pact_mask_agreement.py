@@ -1,0 +1,86 @@
+"""Render-and-compare of stage-1 part voxels against a part mask, and the stage-1
+generator's choice among samples."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from generator.pact.mask_agreement import agreement, id_iou, mask_ids, view_rotation
+from generator.pact.stage1_generator import Stage1Generator
+
+R = 16
+
+
+def _two_doors(swap: bool = False) -> np.ndarray:
+    """Slot 0 a base box (x < 12), slots 1 and 2 two doors on its front (x 12-13), side by
+    side: slot 1 at low y, slot 2 at high y (or the other way round with ``swap``)."""
+    occ = np.zeros((3, R, R, R), bool)
+    occ[0, :12] = True
+    a, b = (2, 1) if swap else (1, 2)
+    occ[a, 12:14, :8] = True
+    occ[b, 12:14, 8:] = True
+    return occ
+
+
+def _front_mask() -> np.ndarray:
+    """A 64 x 64 part mask of ``_two_doors()`` seen from the front: the door of slot 1
+    (id 2) on the image's left, slot 2's (id 3) on the right."""
+    m = np.zeros((64, 64), np.uint8)
+    m[8:56, 8:32] = 2
+    m[8:56, 32:56] = 3
+    return m
+
+
+def test_view_rotation_axes_by_hand():
+    np.testing.assert_allclose(
+        view_rotation(0.0, 0.0), [[0, 1, 0], [0, 0, -1], [1, 0, 0]], atol=1e-12
+    )
+    # camera on +y: image right is -x, down is -z, towards the camera +y
+    np.testing.assert_allclose(
+        view_rotation(np.pi / 2, 0.0), [[-1, 0, 0], [0, 0, -1], [0, 1, 0]], atol=1e-12
+    )
+    # from above-front at 90 degrees elevation the image's down is +x... (not used); at 45:
+    v = view_rotation(0.0, np.pi / 4)
+    np.testing.assert_allclose(v[2], [np.sqrt(0.5), 0, np.sqrt(0.5)], atol=1e-12)
+    np.testing.assert_allclose(v @ v.T, np.eye(3), atol=1e-12)
+
+
+def test_id_iou_and_mask_ids_by_hand():
+    a = np.array([[1, 1], [2, 0]])
+    b = np.array([[1, 0], [2, 2]])
+    np.testing.assert_allclose(id_iou(a, b, np.array([1, 2])), [0.5, 0.5])
+    m = np.zeros((10, 10), np.uint8)
+    m[2:6, 4:8] = 1
+    m[2:4, 4:6] = 9  # a part beyond the model's slots counts as the base
+    out = mask_ids(m, max_id=3, grid=4)
+    assert out.shape == (4, 4) and set(np.unique(out)) == {1}  # cropped to the silhouette
+    with pytest.raises(ValueError, match="empty"):
+        mask_ids(np.zeros((5, 5), np.uint8), 3)
+
+
+def test_agreement_prefers_the_layout_the_mask_shows():
+    mask = _front_mask()
+    right = agreement(_two_doors(), mask)
+    swapped = agreement(_two_doors(swap=True), mask)
+    assert right > 0.9  # the front view reproduces the mask
+    assert swapped < right - 0.5  # from the side one door hides the other: not zero
+    missing = _two_doors()
+    missing[2] = False
+    assert agreement(missing, mask) < 0.6  # id 3 unmatched: at most half the mean
+    assert agreement(np.zeros((3, R, R, R), bool), mask) == 0.0
+
+
+def test_best_candidate_realizes_the_mask_parts_then_agrees_best():
+    mask = _front_mask()
+    model_mask = torch.from_numpy(mask.astype(np.int64))
+    right, swapped, missing = _two_doors(), _two_doors(swap=True), _two_doors()
+    missing[2] = False
+    occ = np.stack([missing, swapped, right])
+    exists = occ.reshape(3, 3, -1).any(axis=2)
+    assert Stage1Generator._best_candidate(occ, exists, model_mask, mask) == 2
+    # a lone complete candidate wins over an incomplete one without any rendering
+    assert Stage1Generator._best_candidate(occ[:2], exists[:2], model_mask, mask) == 1
+    with pytest.raises(ValueError, match="candidates"):
+        Stage1Generator({}, None, candidates=0)  # type: ignore[arg-type]
