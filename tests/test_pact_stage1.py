@@ -468,10 +468,13 @@ def test_tidy_parts_hand_computed_case():
     occ[1, 4:8, 0:3, 0:3] = True  # a door: 36 voxels, 18 of them inside the base
     occ[2, 0, 7, 7] = True  # a one-voxel speck
     occ[3, 0:2, 0:2, 6:8] = True  # a part the mask does not show
+    occ[1, 7, 5:8, 5:8] = True  # a stray 9-voxel chunk of the door, apart from it
+    occ[0, 7, 7, 0:2] = True  # a stray 2-voxel chunk of the base: a speck
     exists = np.array([True, False, True, True])  # the head dropped the door
     out, ex = tidy_parts(occ, exists, mask_ids=np.array([0, 1, 2, 3]))
     assert ex.tolist() == [True, True, False, False]  # the mask's part list wins
-    assert out.reshape(4, -1).sum(1).tolist() == [216 - 18, 36, 0, 0]  # the door keeps its voxels
+    # the door keeps its voxels and only its largest piece; the base loses the speck
+    assert out.reshape(4, -1).sum(1).tolist() == [216 - 18, 36, 0, 0]
     assert not (out[0] & out[1]).any()
     # without a mask the existence flags decide
     out, ex = tidy_parts(occ, exists)

@@ -156,8 +156,10 @@ def tidy_parts(
     - A voxel claimed by several slots goes to one: a movable part (slot >= 1) wins over
       the base, and among movable parts the lower slot wins (the base's shell around a
       door or drawer is where stage 1 errs; overlapping links fail validation).
-    - Each slot keeps its 26-connected components of at least ``min_voxels`` voxels
-      (the base its largest one when all are smaller): specks become no part.
+    - A movable part (slot >= 1) keeps its largest 26-connected component of at least
+      ``min_voxels`` voxels (a door or a drawer is one rigid piece; a stray chunk
+      stretches its box over its siblings); the base keeps every component of at least
+      ``min_voxels`` voxels (its largest one when all are smaller): specks become no part.
 
     Returns (occupancy, exists) with ``exists[k] == occupancy[k].any()``.
     """
@@ -177,6 +179,8 @@ def tidy_parts(
         if n:
             sizes = np.bincount(labels.ravel())[1:]
             keep = np.flatnonzero(sizes >= min_voxels) + 1
+            if k > 0 and len(keep) > 1:
+                keep = [int(np.argmax(sizes)) + 1]
             if len(keep) == 0 and k == 0:
                 keep = [int(np.argmax(sizes)) + 1]
             occ[k] = np.isin(labels, keep)
