@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from generator.pact.mask_agreement import agreement, id_iou, mask_ids, view_rotation
+from generator.pact.mask_agreement import agreement, carve_missing, id_iou, mask_ids, view_rotation
 from generator.pact.stage1_generator import Stage1Generator
 
 R = 16
@@ -84,3 +84,20 @@ def test_best_candidate_realizes_the_mask_parts_then_agrees_best():
     assert Stage1Generator._best_candidate(occ[:2], exists[:2], model_mask, mask) == 1
     with pytest.raises(ValueError, match="candidates"):
         Stage1Generator({}, None, candidates=0)  # type: ignore[arg-type]
+
+
+def test_carve_missing_takes_the_base_behind_the_parts_mask_pixels():
+    occ = _two_doors()
+    occ[2] = False  # the sample left the right door empty; the mask shows it
+    out = carve_missing(occ, _front_mask(), [1, 2])
+    expected = np.zeros((R, R, R), bool)
+    expected[10:12, 8:, :] = True  # the base's front face behind id 3, as deep as door 1
+    assert np.array_equal(out[2], expected)
+    assert np.array_equal(out[0], occ[0] & ~expected)
+    assert np.array_equal(out[1], occ[1])  # other parts are never taken from
+    assert not occ[2].any()  # the input is left alone
+    # nothing to carve: a realized slot, or a slot the mask pixels show no base under
+    assert np.array_equal(carve_missing(_two_doors(), _front_mask(), [1, 2]), _two_doors())
+    no_base = occ.copy()
+    no_base[0] = False
+    assert not carve_missing(no_base, _front_mask(), [2])[2].any()

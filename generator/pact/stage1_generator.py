@@ -25,8 +25,10 @@ drawn per image and one is kept: among the samples whose tidied parts
 no sample does), the one whose parts agree best with the mask when rendered
 (``mask_agreement.agreement``). The mask is the user's part list and layout; a sample
 that leaves one of its parts empty (the small model does for about one object in six)
-or puts a drawer in the wrong row is wrong whatever its other parts look like. Without a
-mask there is nothing to check against, and one sample is drawn.
+or puts a drawer in the wrong row is wrong whatever its other parts look like. A part
+the mask shows that the kept sample still leaves empty is carved out of the base where
+the mask puts it (``mask_agreement.carve_missing``). Without a mask there is nothing to
+check against, and one sample is drawn.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from generator.box_layout import fit_box_layout
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .mask_agreement import agreement
+from .mask_agreement import agreement, carve_missing
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
@@ -260,7 +262,16 @@ class Stage1Generator:
             )
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
-        return occ[keep], exists[keep]
+        occ, exists = occ[keep], exists[keep]
+        if m is not None:  # a part the mask shows and the kept sample left empty: carved
+            T = occ.shape[1]
+            for b in range(len(images)):
+                ids = torch.unique(m[b * n]).tolist()
+                wanted = [int(i) - 1 for i in ids if 1 < int(i) <= T]
+                if any(not exists[b, k] for k in wanted):
+                    occ[b] = carve_missing(occ[b], masks[b], wanted)
+                    exists[b] = occ[b].reshape(T, -1).any(axis=1)
+        return occ, exists
 
     @staticmethod
     def _best_candidate(
