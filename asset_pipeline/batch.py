@@ -47,7 +47,7 @@ STAGING = ".staging"
 class ConvertSettings:
     """What an item's result depends on besides its input files (hashed for resume)."""
 
-    generator: str = "retrieval"
+    generator: str = "pact"
     validate: bool = True
     repair: bool = True
     preview: bool = True

@@ -270,8 +270,9 @@ def convert(
         ..., "--out", "-o", help="Output folder: OUT/<id>/ and OUT/registry.sqlite."
     ),
     generator: str = typer.Option(
-        "retrieval",
-        help="retrieval (default; closer to the input on every metric so far) or pact (docs/model-card.md).",
+        "pact",
+        help="pact (default: the PAct network, docs/model-card.md) or retrieval (the nearest "
+        "procedural object, the baseline).",
     ),
     workers: int = typer.Option(1, min=1, help="Local worker processes."),
     executor: str = typer.Option("local", help="local (process pool) or ray."),
