@@ -116,3 +116,18 @@ def test_check_tasks_says_when_there_is_nothing_to_check(tmp_path: Path) -> None
     assert result.exit_code == 1
     assert "no movable parts to check" in result.output
     assert "0 of 0" not in result.output
+
+
+def test_convert_uses_pact_by_default(tmp_path):
+    images = tmp_path / "in"
+    images.mkdir()
+    for f in EXAMPLES.glob("microwave_t0000001*"):
+        shutil.copy(f, images / f.name)
+    out = tmp_path / "out"
+    r = runner.invoke(
+        app, ["convert", str(images), "--out", str(out), "--no-validate", "--no-preview", "--quiet"]
+    )
+    assert r.exit_code == 0, r.output
+    obj = json.loads((out / "microwave_t0000001" / "object.json").read_text())
+    assert obj["provenance"]["generator"] == "pact"
+    assert obj["provenance"]["articulation_features"] == "stage2"
