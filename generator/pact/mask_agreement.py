@@ -18,7 +18,7 @@ the mask shows and the kept sample leaves empty is then carved out of the base w
 mask puts it (:func:`carve_missing`). Ground
 truth part voxels score 0.66 on average against the masks of the 42 test-split renders
 (0.32-0.83; the renders are perspective, the score's views orthographic); against the
-mask of another object of the same category, 0.49. About 0.15 s per sample on one core.
+mask of another object of the same category, 0.49. About 0.15-0.25 s per sample on one core.
 """
 
 from __future__ import annotations
