@@ -258,7 +258,7 @@ class Stage1Generator:
                     )
                     + b * n
                     for b in range(len(images))
-                ]  # fmt: skip
+                ]
             )
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
