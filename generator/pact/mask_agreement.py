@@ -15,10 +15,12 @@ unknown), so the score compares the layout of the parts, not the object's size.
 The stage-1 generator (``stage1_generator.Stage1Generator``) draws several samples per
 image and keeps the one that realizes the mask's parts and agrees with it best; a part
 the mask shows and the kept sample leaves empty is then carved out of the base where the
-mask puts it (:func:`carve_missing`). Ground
-truth part voxels score 0.66 on average against the masks of the 42 test-split renders
-(0.32-0.83; the renders are perspective, the score's views orthographic); against the
-mask of another object of the same category, 0.49. About 0.15-0.25 s per sample on one core.
+mask puts it (:func:`carve_missing`).
+
+Ground-truth part voxels score 0.66 on average against the masks of the 42 test-split
+renders (0.32-0.83; the renders are perspective, the score's views orthographic); against
+the mask of another object of the same category, 0.49. About 0.15-0.25 s per sample on
+one core.
 """
 
 from __future__ import annotations
