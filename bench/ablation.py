@@ -79,12 +79,13 @@ def main() -> None:
 
     torch.set_num_threads(args.threads)
 
-    from generator.pact.generate import WEIGHTS_DIR, PActGenerator
+    from generator.pact.generate import PActGenerator
 
     ids = write_test_split(args.split_dir, args.per_category)
     if args.limit:
         ids = ids[: args.limit]
-    gen = PActGenerator.load(args.weights or WEIGHTS_DIR / "small", candidates=args.candidates)
+    kw = {"candidates": args.candidates}
+    gen = PActGenerator.load(args.weights, **kw) if args.weights else PActGenerator.default(**kw)
     variants: list[tuple[str, int, str]] = [("S=1", 1, "stage2"), ("S=15", 15, "stage2"),
                                             ("S=20", 20, "stage2")]  # fmt: skip
     if args.voxels == "stage1" and gen.stage1_head is not None:

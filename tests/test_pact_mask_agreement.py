@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from generator.pact.mask_agreement import agreement, carve_missing, id_iou, mask_ids, view_rotation
 from generator.pact.stage1_generator import Stage1Generator
@@ -41,7 +40,7 @@ def test_view_rotation_axes_by_hand():
     np.testing.assert_allclose(
         view_rotation(np.pi / 2, 0.0), [[-1, 0, 0], [0, 0, -1], [0, 1, 0]], atol=1e-12
     )
-    # from above-front at 90 degrees elevation the image's down is +x... (not used); at 45:
+    # 45 degrees up: the camera direction between +x and +z, the rows orthonormal
     v = view_rotation(0.0, np.pi / 4)
     np.testing.assert_allclose(v[2], [np.sqrt(0.5), 0, np.sqrt(0.5)], atol=1e-12)
     np.testing.assert_allclose(v @ v.T, np.eye(3), atol=1e-12)
@@ -74,14 +73,14 @@ def test_agreement_prefers_the_layout_the_mask_shows():
 
 def test_best_candidate_realizes_the_mask_parts_then_agrees_best():
     mask = _front_mask()
-    model_mask = torch.from_numpy(mask.astype(np.int64))
+    shown = [1, 2]  # the slots of ids 2 and 3, the ones the mask shows
     right, swapped, missing = _two_doors(), _two_doors(swap=True), _two_doors()
     missing[2] = False
     occ = np.stack([missing, swapped, right])
     exists = occ.reshape(3, 3, -1).any(axis=2)
-    assert Stage1Generator._best_candidate(occ, exists, model_mask, mask) == 2
+    assert Stage1Generator._best_candidate(occ, exists, shown, mask) == 2
     # a lone complete candidate wins over an incomplete one without any rendering
-    assert Stage1Generator._best_candidate(occ[:2], exists[:2], model_mask, mask) == 1
+    assert Stage1Generator._best_candidate(occ[:2], exists[:2], shown, mask) == 1
     with pytest.raises(ValueError, match="candidates"):
         Stage1Generator({}, None, candidates=0)  # type: ignore[arg-type]
 

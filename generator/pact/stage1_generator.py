@@ -250,11 +250,21 @@ class Stage1Generator:
             ids = None if m is None else np.unique(m[b].cpu().numpy())
             occ[b], exists[b] = tidy_parts(occ[b], exists[b], ids)
         keep = np.arange(len(occ))
+        T = occ.shape[1]
+        # per image, the slots its mask shows (the flow's model-size ids: slot = id - 1)
+        shown = (
+            []
+            if m is None
+            else [
+                [int(i) - 1 for i in torch.unique(m[b * n]).tolist() if 0 < int(i) <= T]
+                for b in range(len(images))
+            ]
+        )
         if n > 1:
             keep = np.array(
                 [
                     self._best_candidate(
-                        occ[b * n : (b + 1) * n], exists[b * n : (b + 1) * n], m[b * n], masks[b]
+                        occ[b * n : (b + 1) * n], exists[b * n : (b + 1) * n], shown[b], masks[b]
                     )
                     + b * n
                     for b in range(len(images))
@@ -263,26 +273,20 @@ class Stage1Generator:
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
-        if m is not None:  # a part the mask shows and the kept sample left empty: carved
-            T = occ.shape[1]
-            for b in range(len(images)):
-                ids = torch.unique(m[b * n]).tolist()
-                wanted = [int(i) - 1 for i in ids if 1 < int(i) <= T]
-                if any(not exists[b, k] for k in wanted):
-                    occ[b] = carve_missing(occ[b], masks[b], wanted)
-                    exists[b] = occ[b].reshape(T, -1).any(axis=1)
+        for b, slots in enumerate(shown):  # parts the mask shows, left empty: carved
+            if not exists[b, slots].all():
+                occ[b] = carve_missing(occ[b], masks[b], slots)
+                exists[b] = occ[b].reshape(T, -1).any(axis=1)
         return occ, exists
 
     @staticmethod
     def _best_candidate(
-        occ: np.ndarray, exists: np.ndarray, model_mask: torch.Tensor, mask: np.ndarray
+        occ: np.ndarray, exists: np.ndarray, slots: list[int], mask: np.ndarray
     ) -> int:
         """Index of the candidate to keep (module docstring): ``occ`` (n, T, R, R, R) and
-        ``exists`` (n, T) tidied candidates, ``model_mask`` the model-size ids the flow saw,
-        ``mask`` the input's part mask (H, W)."""
-        T = exists.shape[1]
-        wanted = [int(i) - 1 for i in torch.unique(model_mask).tolist() if 0 < int(i) <= T]
-        realized = exists[:, wanted].sum(axis=1)
+        ``exists`` (n, T) tidied candidates, ``slots`` those the mask shows, ``mask`` the
+        input's part mask (H, W)."""
+        realized = exists[:, slots].sum(axis=1)
         best = np.flatnonzero(realized == realized.max())
         if len(best) == 1:
             return int(best[0])

@@ -506,30 +506,35 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
         p.requires_grad_(False)
     train_ds = Stage1Dataset(args.data_dir, T, "train", args.val_fraction, S, args.limit_objects)
     val_ds = Stage1Dataset(args.data_dir, T, "val", args.val_fraction, S, args.limit_objects)
-    init = None
-    if args.init_from:
-        init = load_stage1(args.init_from, d.device)
+    # the weights the run starts from (its checkpoint, else --init-from): their latent
+    # statistics normalize the latents, as they did when those weights were trained
+    ckpt = find_checkpoint(part_dir) if args.resume else None
+    start_from = ckpt / "stage1" if ckpt is not None else args.init_from
+    start = None
+    if start_from is not None:
+        start = load_stage1(start_from, d.device)
         for role in ("image_encoder", "flow"):
-            if getattr(init[1], role) != getattr(cfg, role):
+            if getattr(start[1], role) != getattr(cfg, role):
                 raise ValueError(
-                    f"--init-from {args.init_from}: its {role} config differs from the "
-                    f"training config's ({getattr(init[1], role)} vs {getattr(cfg, role)})"
+                    f"{start_from}: its {role} config differs from the training config's "
+                    f"({getattr(start[1], role)} vs {getattr(cfg, role)})"
                 )
+    start_models, start_stats = (start[0], start[2]) if start is not None else (None, None)
     t_cache = time.time()
     cache_file = part_dir / "latent_cache.pt"
     key = {  # what the cached latents depend on
         "vae": hashlib.sha256((vae_dir / "model.safetensors").read_bytes()).hexdigest(),
         "data": str(Path(args.data_dir).resolve()),
         "objects": [train_ds.object_ids, val_ds.object_ids],
-        "stats_from": str(Path(args.init_from).resolve()) if init is not None else None,
+        "stats": asdict(start_stats) if start_stats is not None else None,
     }
     saved = torch.load(cache_file, weights_only=False) if cache_file.is_file() else None
     if saved is not None and saved["key"] == key:
         cache, val_cache, stats = saved["train"], saved["val"], LatentStats(**saved["stats"])
     else:
         cache, stats = latent_cache(vae, train_ds)
-        if init is not None:  # the weights were trained on latents normalized with these
-            stats = init[2]
+        if start_stats is not None:
+            stats = start_stats
         val_cache, _ = latent_cache(vae, val_ds)
         cache, val_cache = stats.normalize(cache), stats.normalize(val_cache)
         if d.main:  # a cache for resumed runs; written under a temporary name
@@ -551,11 +556,10 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
     encoder, flow = models["image_encoder"].to(d.device), models["flow"].to(d.device)
     params = [p for m in (encoder, flow) for p in m.parameters() if p.requires_grad]
     opt = _optimizer(params, lr, args)
-    step, ckpt = _resume(part_dir, args, opt)
-    if ckpt is not None or init is not None:
-        loaded = load_stage1(ckpt / "stage1", d.device)[0] if ckpt is not None else init[0]
-        encoder.load_state_dict(loaded["image_encoder"].state_dict())
-        flow.load_state_dict(loaded["flow"].state_dict())
+    step, _ = _resume(part_dir, args, opt)
+    if start_models is not None:
+        encoder.load_state_dict(start_models["image_encoder"].state_dict())
+        flow.load_state_dict(start_models["flow"].state_dict())
         if ckpt is None:
             log.info("flow: initialized from %s (step 0, fresh optimizer)", args.init_from)
     logs = RunLog(part_dir, d.main, step)
