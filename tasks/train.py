@@ -34,104 +34,81 @@ log = logging.getLogger(__name__)
 @dataclass
 class Args:
     env_id: str = "OpenDrawer-v0"
+    """task id: OpenDrawer-v0, CloseDrawer-v0, OpenDoor-v0 or CloseDoor-v0"""
     assets: str = "out"
     """folder of built assets or catalog file to train on"""
     eval_assets: str | None = None
-    """held-out assets for evaluation (default: the training assets)"""
+    """held-out assets for evaluation (None: the training assets)"""
     category: str | None = None
+    """only assets of this category (None: every category)"""
     num_envs: int = 4
+    """parallel envs: processes with vector "async", sub-scenes on physx_cuda"""
     vector: str = "async"
-    """CPU only: "async" (one process per env, gymnasium AsyncVectorEnv) or "sync" (all
-    envs stepped in turn in this process: no IPC, for one core or many small envs)"""
+    """CPU: "async" (a process per env) or "sync" (envs stepped in turn in this process)"""
     total_timesteps: int = 200_000
+    """environment steps to train, summed over the envs"""
     max_minutes: float | None = None
-    """stop (then evaluate and save) after this much wall-clock, whatever the step count"""
+    """wall-clock limit in minutes, then evaluate and save (None: steps only)"""
     sim_backend: str = "physx_cpu"
     """physx_cpu (vector of processes) or physx_cuda (one batched GPU env)"""
     control_mode: str = "pd_ee_delta_pos"
-    """the Panda's end-effector position deltas + gripper: the easiest to learn (the
-    start pose already points the gripper at the handle); pd_ee_delta_pose and
-    pd_joint_delta_pos work too"""
+    """controller: pd_ee_delta_pos (easiest), pd_ee_delta_pose or pd_joint_delta_pos"""
     reward_mode: str = "normalized_dense"
+    """ManiSkill reward: normalized_dense (dense / 6), dense or sparse (docs/tasks.md)"""
     control_freq: int = 10
-    """policy steps per simulated second (ManiSkill's default is 20; physics stays at
-    100 Hz): 10 halves the decisions per episode at little cost in physics, so the
-    same wall-clock covers nearly twice the simulated time; evaluation runs at the same
-    frequency"""
+    """policy steps per simulated second, training and evaluation (physics at 100 Hz)"""
     max_episode_steps: int = 30
-    """training episode length (a hand-written drawer policy needs about 13 steps at 10 Hz)"""
+    """training episode length in policy steps (30: 3 s at 10 Hz)"""
     eval_max_episode_steps: int | None = None
-    """evaluation episode length (None: the task's registered default, 100 steps for
-    drawers and 150 for doors at 20 Hz, i.e. 5 s and 7.5 s, scaled to ``control_freq``)"""
+    """evaluation episode length (None: the task's, 5 s for drawers, 7.5 s for doors)"""
     ignore_terminations: bool = True
-    """training episodes run their full length past success (ManiSkill's
-    ``ignore_terminations``): ending at success would make reaching it cost the dense
-    reward of the remaining steps, so the policy would learn to hover short of it.
-    Evaluation ends an episode at its first success (success once)."""
+    """training episodes run their full length past success (evaluation ends at it)"""
     reconfiguration_freq: int = 10
-    """reload an asset every k episodes per env (1: every episode, slow on CPU where a
-    reload costs 0.3-0.5 s; 0: never); resets in between re-sample part and poses"""
+    """reload an asset every k episodes per env (1: every episode; 0: never)"""
     learning_rate: float = 3e-4
+    """PPO's initial learning rate"""
     lr_anneal_steps: int | None = 600_000
-    """decay the learning rate linearly to zero over this many environment steps (then
-    hold it at zero; None: constant). 600k is about what 60 minutes reach on 2 cores.
-    PPO's updates stay large late in a constant-rate run (approximate KL 0.06-0.15),
-    so its policy keeps swinging: measured with ``bench/rl.py --minutes 60``, held-out
-    curve points from 450k steps averaged 0.64 with the decay against 0.42 without, and
-    the final policy reached 0.74 on 50 held-out episodes against 0.62 and 0.54 (one
-    run, which also had ``handle_kind`` newly in the observation)"""
+    """env steps over which the learning rate decays linearly to 0 (None: constant)"""
     n_steps: int = 128
-    """rollout length per env"""
+    """rollout length per env, in policy steps"""
     batch_size: int = 256
+    """PPO minibatch size, in transitions"""
     n_epochs: int = 5
+    """PPO epochs over each rollout"""
     gamma: float = 0.9
+    """discount factor per policy step"""
     gae_lambda: float = 0.95
+    """GAE lambda"""
     ent_coef: float = 0.0
+    """entropy bonus coefficient (0: none)"""
     target_kl: float | None = None
-    """stop an update's epochs early once the approximate KL to the rollout policy
-    exceeds 1.5 x this (SB3's ``target_kl``); None: no limit"""
+    """stop an update's epochs once approximate KL > 1.5 x this (None: no limit)"""
     log_std_init: float = -2.0
-    """initial log std of the Gaussian policy: -2 (std 0.135, 1.4 cm per step in
-    ``pd_ee_delta_pos`` at 10 Hz) rather than -1 (3.7 cm per step, larger than a grasp
-    tolerates); measured in 25-minute ``bench/rl.py`` runs: held-out curve points from
-    150k to 275k steps averaged 0.475 (10 points of 20 episodes) against 0.28"""
+    """initial log std of the Gaussian policy (-2: 1.4 cm per step in pd_ee_delta_pos)"""
     gripper_log_std_init: float | None = None
-    """initial log std of the gripper action alone (None: ``log_std_init``). The gripper
-    dimension is an absolute finger target (-1..1 to -0.01..0.04 m), not a delta like
-    the position dimensions, so ``log_std_init`` -2 explores only +-3.4 mm of finger
-    travel: too little to find a grasp by chance"""
+    """initial log std of the gripper action alone (None: log_std_init)"""
     gripper_init: float | None = None
-    """initial mean of the gripper action (the last action dimension of every Panda
-    control mode), set through the policy's action-layer bias: ManiSkill maps -1..1 to
-    finger targets -0.01..0.04 m, so SB3's zero-mean start holds the fingers 3 cm apart,
-    too narrow to straddle a handle, and PPO then learns to hook handles with closed
-    fingers (which slip); +1 starts with the fingers open, but then PPO's noise almost
-    never closes them. None keeps SB3's zero init (measured: +1 was no better over 195k
-    steps)"""
+    """initial mean gripper action, -1..1 = fingers -0.01..0.04 m (None: SB3's 0)"""
     near_start_prob: float = 0.0
-    """OpenDrawer-v0 only: fraction of training episodes that start with the open
-    fingers around the handle instead of 12 cm in front of it (a start-state
-    curriculum, ``ArticulatedPartEnv(near_start_prob=)``); evaluation always starts at
-    the task's standard pose"""
+    """OpenDrawer-v0: share of training episodes starting with fingers round the handle"""
     require_grasp: bool = True
-    """dense reward: the grasp term only for a real grasp, also once the part moves
-    (``ArticulatedPartEnv(require_grasp=)``; the env's own default lets a hook that moves
-    the part earn it too, as in ManiSkill's cabinet tasks). Measured with ``bench/rl.py``:
-    final policy on 50 held-out episodes 0.56 after 25 min and 0.62 after 60 min, against
-    0.42 and 0.46 without; the 20-episode curve points average the same (about 0.46)"""
+    """dense reward's grasp term only for a real grasp, not a hook (False: the env's)"""
     normalize_obs: bool = True
-    """running mean/std observation normalization (SB3 VecNormalize); the statistics are
-    saved next to the policy as ``obs_norm.pkl`` and applied by :func:`evaluate`"""
+    """running mean/std observation normalization, saved beside the policy (obs_norm.npz)"""
     net_arch: list[int] = field(default_factory=lambda: [256, 256])
+    """hidden layer widths of the policy and value MLPs"""
     seed: int = 0
+    """random seed of PPO and the envs"""
     out_dir: str = "runs/ppo"
+    """run folder: policy.zip, obs_norm.npz, args.json, progress.csv, eval.csv, TensorBoard"""
     eval_every: int = 20_000
+    """env steps between held-out evaluations (0: none)"""
     eval_episodes: int = 10
+    """episodes per periodic evaluation"""
     device: str = "cpu"
+    """torch device of the learner"""
     torch_threads: int = 1
-    """torch threads per process (learner and each env worker): on a few shared cores
-    one thread each is fastest (the env and the learner alternate, the workers run side
-    by side); 0 leaves torch's default"""
+    """torch threads per process, learner and each env worker (0: torch's default)"""
 
 
 # --------------------------------------------------------------------------- envs

@@ -69,37 +69,35 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class Args:
-    data_dir: str = "runs/data/train"
-    out_dir: str = "runs/pact/stage1"
+    data_dir: str = "runs/data/train"  # dataset folder (pact dataset build)
+    out_dir: str = "runs/pact/stage1"  # run folder: vae/ and flow/ (checkpoint/, log.csv, tb/)
     config: str = "small"  # packaged config name or path to a JSON
     part: str = "all"  # "vae", "flow" or "all" (VAE, then flow)
     steps: int | None = None  # overrides vae_steps / flow_steps for the part(s) trained
-    vae_steps: int = 1500
-    flow_steps: int = 3000
+    vae_steps: int = 1500  # VAE optimiser steps (the schedule's length)
+    flow_steps: int = 3000  # flow optimiser steps (the schedule's length)
     batch_size: int | None = None  # per rank; None: the config's vae_train / flow_train
-    lr: float | None = None  # None: the config's
-    warmup: int = 100
+    lr: float | None = None  # peak learning rate; None: the config's
+    warmup: int = 100  # linear warm-up, in steps
     schedule: str = "cosine"  # "cosine" (to min_lr_frac * lr) or "constant"
-    min_lr_frac: float = 0.1
-    weight_decay: float = 0.0
-    grad_clip: float = 1.0
-    bf16: bool | None = None  # None: the config's
+    min_lr_frac: float = 0.1  # the cosine's floor, as a fraction of lr
+    weight_decay: float = 0.0  # AdamW weight decay
+    grad_clip: float = 1.0  # gradient-norm clip
+    bf16: bool | None = None  # bf16 autocast; None: the config's
     empty_fraction: float = 0.0625  # VAE: share of each batch that is an all-empty grid
     val_fraction: float = 0.05  # objects held out by id hash (see data.py)
     val_items: int = 32  # flow: fixed validation batch size
-    log_every: int = 10
-    eval_every: int = 250
-    ckpt_every: int = 200
-    seed: int = 0
-    resume: bool = True
+    log_every: int = 10  # steps between log rows
+    eval_every: int = 250  # steps between validations
+    ckpt_every: int = 200  # steps between checkpoints
+    seed: int = 0  # every random draw is keyed by (seed, step, rank)
+    resume: bool = True  # continue from the run's last checkpoint when there is one
     threads: int | None = None  # torch intra-op threads per rank (None: torch's default)
-    max_minutes: float | None = None  # stop (with a checkpoint) after this wall-clock
+    max_minutes: float | None = None  # stop (with a checkpoint) after this many minutes
     stop_after: int | None = None  # stop (with a checkpoint) at this step; resume later
     limit_objects: int | None = None  # use only the first N objects (tests)
     vae_dir: str | None = None  # frozen VAE for the flow; None: <out>/vae/checkpoint/ss_vae
-    # flow: start from a stage-1 folder's weights and latent statistics (e.g. the shipped
-    # weights/small/stage1) when the run has no checkpoint yet; fresh optimiser, step 0
-    init_from: str | None = None
+    init_from: str | None = None  # flow, new run: start from this stage-1 folder's weights
 
 
 # --- distributed ----------------------------------------------------------------------
