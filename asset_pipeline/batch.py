@@ -6,20 +6,37 @@ preview) in a worker; the driver alone writes the catalog (``OUT/registry.sqlite
 
 Guarantees
 ----------
-- Atomic items: a worker assembles the asset in ``OUT/.staging/<id>.<pid>/`` and
-  renames it to ``OUT/<id>`` only when it is complete; an older version is moved
-  aside first and deleted after. A run killed at any moment leaves finished items
-  intact and no half-made ``OUT/<id>``; stale staging folders are removed by the next
-  run.
+- One run per output folder: the driver holds ``OUT/.lock`` (an exclusive ``flock``)
+  for the whole run; a second run on the same folder stops at once with
+  :class:`OutputLockedError` naming the process that holds it.
+- Unique ids: an item's id is its hints' ``id`` or its photo's name (slugified when
+  needed, :func:`asset_pipeline.inputs.asset_id_for`). Two items of a batch with the
+  same id both fail, and so does an item whose id the catalog gives to another photo;
+  the catalog's own files and hidden names are never ids.
+- Atomic items: a worker assembles the asset in ``OUT/.staging/<pid>.<time>/<id>/`` and
+  renames it to ``OUT/<id>`` only when it is complete. A run killed at any moment
+  leaves finished items intact and no half-made ``OUT/<id>``; the next run removes the
+  staging folder.
+- Nothing done is lost: when an item that had a good asset fails (its photo became
+  unreadable, validation now fails), the old asset is moved to ``OUT/.previous/<id>/``
+  and the failure says so; the catalog never calls a folder ok that is not.
+- The catalog agrees with the disk: at the start of a run every catalogued asset is
+  checked (:func:`asset_pipeline.catalog.folder_problem`); a damaged one (a deleted
+  ``model.urdf``, ``collision/`` gone, a report that disagrees) is marked failed with
+  the reason, and rebuilt when its photo is in the batch.
 - Resumable and idempotent: an item whose id, input hash and settings hash match a
-  catalogued, not-failed asset whose folder exists is skipped (``force`` redoes it).
-- One failed item never stops the batch; its reason is catalogued.
-- Executors: a local process pool (default; ``workers`` processes) or a Ray cluster
-  (``executor="ray"``, each item one Ray task, the catalog written by the driver).
+  catalogued, complete, not-failed asset is skipped (``force`` redoes it).
+- One failed item never stops the batch; its reason is catalogued. A worker process
+  that dies (a native crash, ``kill -9``) fails only the item it held, named.
+- Executors: local worker processes (default; :mod:`asset_pipeline.worker_pool`) or a
+  Ray cluster (``executor="ray"``, each item one Ray task, the catalog written by the
+  driver).
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import json
 import logging
@@ -28,19 +45,42 @@ import shutil
 import time
 import traceback
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from asset_pipeline.inputs import InputError, InputItem, discover_inputs, load_input
-from asset_pipeline.registry import Catalog, register_asset_dir
+from asset_pipeline.catalog import (
+    CATALOG_NAME,
+    Catalog,
+    CatalogError,
+    folder_problem,
+    register_asset_dir,
+)
+from asset_pipeline.inputs import (
+    InputError,
+    InputItem,
+    SkippedFile,
+    discover_inputs,
+    load_input,
+)
+from asset_pipeline.validate import ReportFormatError, read_report
+from asset_pipeline.worker_pool import WorkerDied, WorkerPool
 
 log = logging.getLogger(__name__)
 
 STAGES = ("load", "generate", "build", "validate")
 GENERATORS = ("pact", "retrieval")
 STAGING = ".staging"
+PREVIOUS = ".previous"
+LOCK_NAME = ".lock"
+
+
+class OutputLockedError(RuntimeError):
+    """Another run holds the output folder's lock; the message names the folder and pid."""
+
+
+class OutputFolderError(ValueError):
+    """``--out`` cannot be used as an output folder; the message says why."""
 
 
 @dataclass(frozen=True)
@@ -74,6 +114,8 @@ class ItemResult:
     category: str = "unknown"
     generator: str = ""
     generator_version: str = ""
+    #: How the id was made when it is not the photo's name or hint (slugified).
+    id_note: str | None = None
 
 
 # --------------------------------------------------------------------------- generators
@@ -104,52 +146,49 @@ def generator_version(name: str) -> str:
 # --------------------------------------------------------------------------- one item
 
 
-def _replace_dir(staging: Path, final: Path) -> None:
-    """Move ``staging`` to ``final``, replacing an older ``final`` without a half-made state."""
-    old = None
-    if final.exists():
-        old = final.parent / STAGING / f"{final.name}.old.{os.getpid()}.{time.time_ns()}"
-        os.replace(final, old)
-    os.replace(staging, final)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+def _result_for(item: InputItem, settings: ConvertSettings) -> ItemResult:
+    asset_id, note = item.resolve_asset_id()
+    return ItemResult(
+        id=asset_id,
+        name=item.name,
+        status="failed",
+        source_image=str(item.image_path),
+        source_hash=item.input_hash,
+        generator=settings.generator,
+        id_note=note,
+    )
 
 
 def convert_item(
     item: InputItem,
     out: str | Path,
     settings: ConvertSettings,
-    report_stage: Callable[[str, str], None] | None = None,
+    report_stage: Callable[[str], None] | None = None,
 ) -> ItemResult:
-    """Run every stage for one input item; never raises (failures come back as results)."""
+    """Run every stage for one input item into ``OUT/.staging``; never raises.
+
+    Returns the result with ``path`` set to the complete staged asset folder (the
+    driver moves it into place) or a failure with its stage and reason.
+    """
     from asset_pipeline.build import build_asset
     from generator.articulated import save_bundle
 
     out = Path(out)
-    result = ItemResult(
-        id=item.name,
-        name=item.name,
-        status="failed",
-        source_image=str(item.image_path),
-        source_hash=item.input_hash,
-        generator=settings.generator,
-    )
+    result = _result_for(item, settings)
     # The build names the asset after its folder, so stage in a private parent folder.
     private = out / STAGING / f"{os.getpid()}.{time.time_ns()}"
-    staging = private / item.name
     stage = "load"
 
     def enter(name: str) -> float:
         nonlocal stage
         stage = name
         if report_stage:
-            report_stage(item.name, name)
+            report_stage(name)
         return time.perf_counter()
 
     try:
         t = enter("load")
         loaded = load_input(item)
-        result.id = loaded.asset_id
         staging = private / result.id
         result.category = loaded.category
         result.stage_seconds["load"] = time.perf_counter() - t
@@ -188,23 +227,129 @@ def convert_item(
                 result.reason = "validation failed: " + ", ".join(
                     c.key for c in report.failed_checks[:6]
                 )
+                result.stage = "validate"
             result.stage_seconds["validate"] = time.perf_counter() - t
-        final = out / result.id
-        _replace_dir(staging, final)
-        shutil.rmtree(private, ignore_errors=True)
-        result.path = str(final)
+        result.path = str(staging)
         result.status = status
-        if status == "failed":
-            result.stage = "validate"
     except Exception as e:  # a failed item is a result, not a crash
         result.status = "failed"
         result.stage = stage
+        result.path = None
         result.reason = (
             f"{stage}: {e}" if isinstance(e, InputError) else f"{stage}: {type(e).__name__}: {e}"
         )
         log.debug("item %s failed in %s:\n%s", item.name, stage, traceback.format_exc())
         shutil.rmtree(private, ignore_errors=True)
     return result
+
+
+def _convert_in_worker(job: tuple[InputItem, str, ConvertSettings], report: Callable) -> ItemResult:
+    """:func:`convert_item` for :class:`~asset_pipeline.worker_pool.WorkerPool`."""
+    item, out, settings = job
+    return convert_item(item, out, settings, report)
+
+
+# --------------------------------------------------------------------------- the output folder
+
+
+@contextlib.contextmanager
+def output_lock(out: Path) -> Iterator[None]:
+    """Hold ``OUT/.lock`` exclusively for the block; raise OutputLockedError when taken."""
+    path = out / LOCK_NAME
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError as e:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
+            raise OutputLockedError(
+                f"{out}: another pact run (pid {holder}) is writing to this folder; "
+                "wait for it to finish or choose another --out"
+            ) from e
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+def prepare_output(out: str | Path) -> Path:
+    """``out`` as an existing folder (created when missing); OutputFolderError otherwise."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputFolderError(f"{out}: exists and is not a folder; choose a folder for --out")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputFolderError(f"{out}: cannot create the output folder: {e.strerror}") from e
+    return out
+
+
+def clean_staging(out: Path) -> None:
+    """Remove what a killed run left in ``OUT/.staging``."""
+    shutil.rmtree(out / STAGING, ignore_errors=True)
+
+
+def set_aside(out: Path, asset_id: str) -> Path | None:
+    """Move ``OUT/<id>`` (if any) to ``OUT/.previous/<id>`` (replacing an older one)."""
+    folder = out / asset_id
+    if not folder.exists():
+        return None
+    dest = out / PREVIOUS / asset_id
+    shutil.rmtree(dest, ignore_errors=True)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(folder, dest)
+    return dest
+
+
+def _install(staged: Path, out: Path, asset_id: str, failed: bool) -> Path:
+    """Move a complete staged asset to ``OUT/<id>``. An older asset there is deleted, or
+    kept in ``OUT/.previous/<id>`` when the new one failed validation."""
+    final = out / asset_id
+    old = None
+    if final.exists():
+        if failed:
+            set_aside(out, asset_id)
+        else:
+            old = out / STAGING / f"{asset_id}.old.{os.getpid()}.{time.time_ns()}"
+            os.replace(final, old)
+    os.replace(staged, final)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return final
+
+
+def reconcile(catalog: Catalog, out: Path) -> list[str]:
+    """Make every catalog row agree with its folder; return what was changed.
+
+    A row that says ok or repaired whose folder is incomplete or disagrees
+    (:func:`~asset_pipeline.catalog.folder_problem`) becomes failed with the reason; a
+    failed row whose folder holds a passing asset (left by an older pact) has that
+    folder moved to ``OUT/.previous/``.
+    """
+    notes = []
+    for row in catalog.query(details=True):
+        folder = catalog.asset_dir(row)
+        if row.status in ("ok", "repaired"):
+            problem = (
+                folder_problem(folder, row.status, validated=bool(row.checks))
+                if folder
+                else "no asset folder"
+            )
+            if problem is not None:
+                reason = f"the asset's files are damaged ({problem}); convert its photo again"
+                catalog.upsert_asset(replace(row, status="failed", failure_reason=reason))
+                notes.append(f"{row.id}: marked failed: {reason}")
+        elif folder is not None and folder.is_dir() and folder.parent == out:
+            try:
+                report = read_report(folder)
+            except ReportFormatError:
+                report = None
+            if report is not None and report.ok:
+                dest = set_aside(out, row.id)
+                catalog.upsert_asset(replace(row, path=None))
+                notes.append(f"{row.id}: failed in the catalog; its old asset moved to {dest}")
+    return notes
 
 
 # --------------------------------------------------------------------------- the batch
@@ -214,18 +359,18 @@ def convert_item(
 class BatchSummary:
     results: list[ItemResult]
     skipped: list[str]
+    #: Files of the input folder that are not items (with why).
+    ignored: list[SkippedFile] = field(default_factory=list)
+    #: Catalog rows changed to agree with the disk before the run.
+    reconciled: list[str] = field(default_factory=list)
 
     @property
     def failed(self) -> list[ItemResult]:
         return [r for r in self.results if r.status == "failed"]
 
 
-def clean_staging(out: Path) -> None:
-    """Remove what a killed run left in ``OUT/.staging``."""
-    shutil.rmtree(out / STAGING, ignore_errors=True)
-
-
-def _register(catalog: Catalog, r: ItemResult, settings_hash: str) -> None:
+def _register(catalog: Catalog, out: Path, r: ItemResult, settings_hash: str) -> None:
+    """Install a finished item's folder and write its catalog row (driver only)."""
     provenance = dict(
         source_image=r.source_image,
         source_hash=r.source_hash,
@@ -235,66 +380,52 @@ def _register(catalog: Catalog, r: ItemResult, settings_hash: str) -> None:
         stage_seconds=r.stage_seconds,
     )
     if r.path is not None:
-        rec = register_asset_dir(catalog, r.path, **provenance)
+        final = _install(Path(r.path), out, r.id, failed=r.status == "failed")
+        r.path = str(final)
+        rec = register_asset_dir(catalog, final, **provenance)
         if r.status == "failed" and rec.status != "failed":
-            catalog.upsert_asset(
-                type(rec)(**{**asdict(rec), "status": "failed", "failure_reason": r.reason})
-            )
-    else:
-        catalog.record_failure(
-            r.id, r.reason or "unknown failure", category=r.category, **provenance
-        )
+            catalog.upsert_asset(replace(rec, status="failed", failure_reason=r.reason))
+        return
+    moved = set_aside(out, r.id)
+    if moved is not None:
+        r.reason = f"{r.reason} (the previous asset was moved to {moved})"
+    catalog.record_failure(r.id, r.reason or "unknown failure", category=r.category, **provenance)
 
 
 def _local_results(
-    todo: list[InputItem], out: Path, settings: ConvertSettings, workers: int, on_stage
+    todo: list[InputItem],
+    out: Path,
+    settings: ConvertSettings,
+    workers: int,
+    on_stage: Callable[[str, str], None] | None,
 ) -> Iterator[ItemResult]:
     if workers <= 1:
         for item in todo:
-            yield convert_item(item, out, settings, on_stage)
+            yield convert_item(
+                item, out, settings, lambda s, n=item.name: on_stage and on_stage(n, s)
+            )
         return
-    import multiprocessing as mp
+    pool = WorkerPool(_convert_in_worker, workers)
+    jobs = [(item, str(out), settings) for item in todo]
 
-    ctx = mp.get_context("spawn")  # SAPIEN and torch do not survive fork reliably
-    with mp.Manager() as manager:
-        stages = manager.dict()
-        reporter = _DictReporter(stages)
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            pending = {pool.submit(convert_item, it, out, settings, reporter): it for it in todo}
-            while pending:
-                done, _ = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-                if on_stage:
-                    for name, stage in list(stages.items()):
-                        on_stage(name, stage)
-                for fut in done:
-                    item = pending.pop(fut)
-                    try:
-                        yield fut.result()
-                    except Exception as e:  # a worker process died
-                        yield _lost(item, settings, f"worker crashed: {type(e).__name__}: {e}")
+    def stage_of(job: tuple, stage: str) -> None:
+        if on_stage:
+            on_stage(job[0].name, stage)
+
+    for (item, _, _), result in pool.run(jobs, on_stage=stage_of):
+        if isinstance(result, WorkerDied):
+            yield _lost(item, settings, f"{item.name}: {result.reason}", result.stage)
+        else:
+            yield result
 
 
-def _lost(item: InputItem, settings: ConvertSettings, reason: str) -> ItemResult:
+def _lost(
+    item: InputItem, settings: ConvertSettings, reason: str, stage: str | None = None
+) -> ItemResult:
     """The result of an item whose worker died before it could report."""
-    return ItemResult(
-        id=_asset_id(item),
-        name=item.name,
-        status="failed",
-        reason=reason,
-        source_image=str(item.image_path),
-        source_hash=item.input_hash,
-        generator=settings.generator,
-    )
-
-
-class _DictReporter:
-    """Picklable stage reporter writing into a multiprocessing Manager dict."""
-
-    def __init__(self, shared: Any) -> None:
-        self.shared = shared
-
-    def __call__(self, name: str, stage: str) -> None:
-        self.shared[name] = stage
+    result = _result_for(item, settings)
+    result.reason, result.stage = reason, stage
+    return result
 
 
 def _ray_results(
@@ -312,7 +443,73 @@ def _ray_results(
             try:
                 yield ray.get(ref)
             except Exception as e:  # the task or its worker died
-                yield _lost(item, settings, f"ray task failed: {type(e).__name__}: {e}")
+                yield _lost(
+                    item, settings, f"{item.name}: ray task failed: {type(e).__name__}: {e}"
+                )
+
+
+def _plan(
+    items: list[InputItem],
+    catalog: Catalog,
+    settings: ConvertSettings,
+    settings_hash: str,
+    force: bool,
+) -> tuple[list[InputItem], list[str], list[ItemResult]]:
+    """Split items into (to convert, ids skipped as done, refused results)."""
+    todo, skipped, refused = [], [], []
+    first_of: dict[str, InputItem] = {}
+    for item in items:
+        asset_id = item.asset_id
+        key = asset_id.lower()  # ids name folders: a case-insensitive disk must not merge two
+        if key in first_of:
+            other = first_of[key]
+            r = _result_for(item, settings)
+            r.stage, r.reason = (
+                "load",
+                (
+                    f"{item.image_path}: id {asset_id!r} is also the id of {other.image_path} in "
+                    "this batch; give one of them another id in its hints"
+                ),
+            )
+            refused.append(r)
+            continue
+        first_of[key] = item
+        row = catalog.get(asset_id)
+        if (
+            row is not None
+            and row.source_image is not None
+            and Path(row.source_image).resolve() != item.image_path.resolve()
+            and row.source_hash != item.input_hash
+        ):
+            r = _result_for(item, settings)
+            r.stage, r.reason = (
+                "load",
+                (
+                    f"{item.image_path}: id {asset_id!r} already belongs to {row.source_image} in "
+                    f"{catalog.path}; give this photo another id in its hints"
+                ),
+            )
+            refused.append(r)
+            continue
+        if not force and catalog.is_done(asset_id, item.input_hash, settings_hash):
+            skipped.append(asset_id)
+        else:
+            todo.append(item)
+    # a later item refused for a duplicate id makes the first one ambiguous too
+    dup = {r.id.lower() for r in refused if "in this batch" in (r.reason or "")}
+    for item in [it for it in todo if it.asset_id.lower() in dup]:
+        todo.remove(item)
+        r = _result_for(item, settings)
+        r.stage, r.reason = (
+            "load",
+            (
+                f"{item.image_path}: id {item.asset_id!r} is shared with another photo of this "
+                "batch; give each photo its own id"
+            ),
+        )
+        refused.append(r)
+    skipped = [s for s in skipped if s.lower() not in dup]
+    return todo, skipped, refused
 
 
 def run_convert(
@@ -328,47 +525,48 @@ def run_convert(
     on_stage: Callable[[str, str], None] | None = None,
     on_result: Callable[[ItemResult], None] | None = None,
 ) -> BatchSummary:
-    """Convert every item of ``images`` into ``out``; see the module docstring."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    clean_staging(out)
-    items = discover_inputs(images)
-    version = generator_version(settings.generator)
-    settings_hash = settings.digest(version)
-    results: list[ItemResult] = []
-    skipped: list[str] = []
-    with Catalog(out) as catalog:
-        todo = []
-        for item in items:
-            # The id is the hints' "id" or the file name; cheap to read again here.
-            asset_id = _asset_id(item)
-            if not force and catalog.is_done(asset_id, item.input_hash, settings_hash):
-                skipped.append(asset_id)
+    """Convert every item of ``images`` into ``out``; see the module docstring.
+
+    Raises InputError (the input folder), OutputFolderError, OutputLockedError or
+    CatalogError (each naming the path) before any item is converted.
+    """
+    if executor not in ("local", "ray"):
+        raise ValueError(f"executor must be 'local' or 'ray', got {executor!r}")
+    listing = discover_inputs(images)  # before --out is created: a wrong folder makes nothing
+    out = prepare_output(out)
+    if (out / CATALOG_NAME).exists() and not (out / CATALOG_NAME).is_file():
+        raise OutputFolderError(f"{out / CATALOG_NAME}: is not a file; move it away")
+    with output_lock(out):
+        clean_staging(out)
+        version = generator_version(settings.generator)
+        settings_hash = settings.digest(version)
+        results: list[ItemResult] = []
+        with Catalog(out) as catalog:
+            reconciled = reconcile(catalog, out)
+            for note in reconciled:
+                log.warning("%s", note)
+            todo, skipped, refused = _plan(listing.items, catalog, settings, settings_hash, force)
+            if on_start:
+                on_start(len(todo) + len(refused), len(skipped))
+            for r in refused:
+                results.append(r)
+                if on_result:
+                    on_result(r)
+            if executor == "ray":
+                stream = _ray_results(todo, out, settings, ray_address)
             else:
-                todo.append(item)
-        if on_start:
-            on_start(len(todo), len(skipped))
-        if executor == "ray":
-            stream = _ray_results(todo, out, settings, ray_address)
-        elif executor == "local":
-            stream = _local_results(todo, out, settings, workers, on_stage)
-        else:
-            raise ValueError(f"executor must be 'local' or 'ray', got {executor!r}")
-        for r in stream:
-            _register(catalog, r, settings_hash)
-            results.append(r)
-            if on_result:
-                on_result(r)
-    clean_staging(out)
-    return BatchSummary(results=results, skipped=skipped)
-
-
-def _asset_id(item: InputItem) -> str:
-    if item.hints_path is not None:
-        try:
-            hints = json.loads(item.hints_path.read_text())
-            if isinstance(hints, dict) and isinstance(hints.get("id"), str):
-                return hints["id"]
-        except (OSError, ValueError):
-            pass
-    return item.name
+                stream = _local_results(todo, out, settings, workers, on_stage)
+            for r in stream:
+                try:
+                    _register(catalog, out, r, settings_hash)
+                except (CatalogError, OSError) as e:
+                    r.status, r.stage = "failed", "register"
+                    r.reason = f"register: {e}"
+                    log.error("%s: cannot register: %s", r.id, e)
+                results.append(r)
+                if on_result:
+                    on_result(r)
+        clean_staging(out)
+    return BatchSummary(
+        results=results, skipped=skipped, ignored=list(listing.skipped), reconciled=reconciled
+    )

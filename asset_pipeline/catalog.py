@@ -28,17 +28,22 @@ exists. Failed items are retried on a rerun.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
 import sqlite3
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from rich.markup import escape
 from rich.table import Table
+
+from .asset_io import MJCF_NAME, AssetFormatError, load_asset, missing_files
+from .validate.report import REPORT_NAME, Report, ReportFormatError, _jsonable, read_report
 
 log = logging.getLogger(__name__)
 
@@ -138,12 +143,7 @@ class AssetRecord:
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
     path: str | None = None
     created_at: str | None = None
-
-
-@dataclass(frozen=True)
-class AssetRow(AssetRecord):
-    """An asset as read back, with its parts and checks (empty unless requested)."""
-
+    #: Filled when read back with details (:meth:`Catalog.get`, ``query(details=True)``).
     parts: tuple[PartRecord, ...] = ()
     checks: tuple[CheckRecord, ...] = ()
 
@@ -183,6 +183,22 @@ def catalog_path(out: str | Path) -> Path:
     """The catalog file of an output folder (or ``out`` itself when it names a file)."""
     out = Path(out)
     return out if out.suffix in (".sqlite", ".db") else out / CATALOG_NAME
+
+
+def _database_errors(method: Callable) -> Callable:
+    """Turn SQLite's errors on a damaged file into CatalogError naming the file."""
+
+    @functools.wraps(method)
+    def wrapped(self: Catalog, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return method(self, *args, **kwargs)
+        except sqlite3.DatabaseError as e:
+            raise CatalogError(
+                f"{self.path}: the catalog is damaged or not a catalog ({e}); move it away "
+                "and convert again to start a new one"
+            ) from e
+
+    return wrapped
 
 
 class Catalog:
@@ -296,6 +312,7 @@ class Catalog:
         return p if p.is_absolute() else self.root / p
 
     # ---- writes
+    @_database_errors
     def upsert_asset(
         self,
         record: AssetRecord,
@@ -398,6 +415,7 @@ class Catalog:
         )
         self.upsert_asset(rec, (), checks)
 
+    @_database_errors
     def delete(self, id: str) -> None:
         c = self.conn
         c.execute("BEGIN IMMEDIATE")
@@ -416,8 +434,8 @@ class Catalog:
     )
 
     @staticmethod
-    def _row(r: Sequence[Any]) -> AssetRow:
-        return AssetRow(
+    def _row(r: Sequence[Any]) -> AssetRecord:
+        return AssetRecord(
             id=r[0],
             status=r[1],
             source_image=r[2],
@@ -436,7 +454,7 @@ class Catalog:
             created_at=r[17],
         )
 
-    def _details(self, row: AssetRow) -> AssetRow:
+    def _details(self, row: AssetRecord) -> AssetRecord:
         parts = tuple(
             PartRecord(*p)
             for p in self.conn.execute(
@@ -456,18 +474,20 @@ class Catalog:
         )
         return replace(row, parts=parts, checks=checks)
 
-    def get(self, id: str) -> AssetRow | None:
+    @_database_errors
+    def get(self, id: str) -> AssetRecord | None:
         """The asset ``id`` with its parts and checks, or None."""
         r = self.conn.execute(f"SELECT {self._COLUMNS} FROM assets WHERE id = ?", (id,)).fetchone()
         return None if r is None else self._details(self._row(r))
 
+    @_database_errors
     def query(
         self,
         status: str | None = None,
         category: str | None = None,
         joint_type: str | None = None,
         details: bool = False,
-    ) -> list[AssetRow]:
+    ) -> list[AssetRecord]:
         """Assets matching every given filter, sorted by id.
 
         ``joint_type`` keeps assets with at least one movable part of that type.
@@ -492,84 +512,82 @@ class Catalog:
         return [self._details(r) for r in rows] if details else rows
 
     def is_done(self, id: str, source_hash: str | None, settings_hash: str | None) -> bool:
-        """True when ``id`` was built from the same input and settings and did not fail.
+        """True when ``id`` was built from the same input and settings, did not fail, and
+        its folder still holds the complete asset (:func:`folder_problem`).
 
-        A failed asset, a changed input or settings hash, or an asset whose folder
-        has gone, all make this False: the batch builds the item again.
+        A failed asset, a changed input or settings hash, or a missing or damaged
+        folder all make this False: the batch builds the item again.
         """
-        r = self.conn.execute(
-            "SELECT status, source_hash, settings_hash, path FROM assets WHERE id = ?", (id,)
-        ).fetchone()
-        if r is None:
+        row = self.get(id)
+        if row is None or row.status == "failed":
             return False
-        status, src, settings, path = r
-        if status == "failed" or src != source_hash or settings != settings_hash:
+        if row.source_hash != source_hash or row.settings_hash != settings_hash:
             return False
-        if path is not None:
-            p = Path(path)
-            if not (p if p.is_absolute() else self.root / p).is_dir():
-                return False
-        return True
+        folder = self.asset_dir(row)
+        if folder is None:
+            return False
+        return folder_problem(folder, row.status, validated=bool(row.checks)) is None
 
 
 # --------------------------------------------------------------------------- built asset -> records
 
 
-def _first(d: Mapping[str, Any], *keys: str, default: Any = None) -> Any:
-    for k in keys:
-        if k in d:
-            return d[k]
-    return default
-
-
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise CatalogError(f"{path}: cannot read: {e}") from e
-
-
-def checks_from_report(report: Mapping[str, Any]) -> list[CheckRecord]:
-    """The checks of a ``report.json`` (schema ``pact.validation``, asset_pipeline.validate).
+def checks_from_report(report: Report | None) -> list[CheckRecord]:
+    """The catalog rows of a validation report's checks.
 
     A check's catalog name is ``name[subject]`` (one check per link or joint); a key
     that repeats (the same check in several sweep configurations) gets ``#2``, ``#3``.
-    A name -> check map (older reports) is accepted too.
     """
-    raw = report.get("checks", [])
-    items: list[tuple[str, Mapping[str, Any]]] = []
-    if isinstance(raw, Mapping):
-        items = [
-            (str(k), v if isinstance(v, Mapping) else {"passed": bool(v)}) for k, v in raw.items()
-        ]
-    elif isinstance(raw, list):
-        for i, c in enumerate(raw):
-            if not isinstance(c, Mapping):
-                continue
-            name = str(c.get("name", f"check_{i}"))
-            if c.get("subject"):
-                name = f"{name}[{c['subject']}]"
-            items.append((name, c))
-    out = []
+    out: list[CheckRecord] = []
     seen: dict[str, int] = {}
-    for name, c in items:
+    for c in [] if report is None else report.checks:
+        name = f"{c.name}[{c.subject}]" if c.subject else c.name
         seen[name] = seen.get(name, 0) + 1
         key = name if seen[name] == 1 else f"{name}#{seen[name]}"
-        detail = _first(c, "message", "detail")
-        if not detail and c.get("details"):
-            detail = c["details"]
+        detail: Any = c.message or (c.details or None)
         out.append(
             CheckRecord(
                 name=key,
-                passed=bool(_first(c, "passed", "pass", "ok", default=False)),
-                value=_first(c, "value", "measured"),
-                tolerance=_first(c, "tolerance", "tol", "threshold"),
+                passed=bool(c.passed),
+                value=c.value,
+                tolerance=c.tolerance,
                 detail=None
                 if detail is None
-                else (detail if isinstance(detail, str) else json.dumps(detail)),
+                else (detail if isinstance(detail, str) else json.dumps(_jsonable(detail))),
             )
         )
     return out
+
+
+def folder_problem(
+    asset_dir: str | Path, status: str | None = None, validated: bool = True
+) -> str | None:
+    """Why ``asset_dir`` does not hold a complete built asset (None when it does).
+
+    Complete: ``asset.json`` and ``model.urdf`` read, every file they reference exists,
+    ``model.xml`` exists, and ``report.json`` reads and says ``status`` (when given).
+    ``validated=False``: an asset built without validation, that may have no report.
+    """
+    asset_dir = Path(asset_dir)
+    if not asset_dir.is_dir():
+        return f"{asset_dir}: folder not found"
+    try:
+        asset = load_asset(asset_dir)
+        report = read_report(asset_dir)
+    except (AssetFormatError, ReportFormatError) as e:
+        return str(e)
+    missing = missing_files(asset)
+    if not (asset_dir / MJCF_NAME).is_file():
+        missing.append(MJCF_NAME)
+    if missing:
+        return f"{asset_dir}: missing {', '.join(missing)}"
+    if report is None:
+        if not validated:
+            return None
+        return f"{asset_dir / REPORT_NAME}: not found (the asset was never validated)"
+    if status is not None and report.status != status:
+        return f"{asset_dir / REPORT_NAME}: says {report.status!r}, the catalog says {status!r}"
+    return None
 
 
 def records_from_asset_dir(
@@ -580,62 +598,52 @@ def records_from_asset_dir(
     ``provenance`` fills the fields the folder does not know (``source_image``,
     ``source_hash``, ``settings_hash``, ``generator``, ``generator_version``,
     ``stage_seconds``, ``status``, ...); a ``status`` given here wins over the report's.
-    Without a report the status is 'ok' (built, not validated).
+    Without a report the status is 'ok' (built, not validated). Raises CatalogError
+    naming the file when the folder cannot be read.
     """
     asset_dir = Path(asset_dir)
-    meta_path = asset_dir / "asset.json"
-    if not meta_path.is_file():
-        raise CatalogError(f"{meta_path}: not found (not a built asset folder)")
-    meta = _read_json(meta_path)
-    if not isinstance(meta, Mapping):
-        raise CatalogError(f"{meta_path}: top level must be a JSON object")
-    report_path = asset_dir / "report.json"
-    report = _read_json(report_path) if report_path.is_file() else {}
-    if not isinstance(report, Mapping):
-        raise CatalogError(f"{report_path}: top level must be a JSON object")
-
-    joints = {j.get("child"): j for j in meta.get("joints", []) if isinstance(j, Mapping)}
+    try:
+        asset = load_asset(asset_dir)
+        report = read_report(asset_dir)
+    except (AssetFormatError, ReportFormatError) as e:
+        raise CatalogError(str(e)) from e
     parts = []
-    for link in meta.get("links", []):
-        j = joints.get(link.get("name"))
+    for link in asset.links:
+        j = asset.joint_of(link.name)
         parts.append(
             PartRecord(
-                name=str(link.get("name")),
-                semantic=link.get("semantic"),
-                joint_type=None if j is None else j.get("type"),
-                lower=None if j is None else j.get("lower"),
-                upper=None if j is None else j.get("upper"),
-                mass=link.get("mass"),
+                name=link.name,
+                semantic=link.semantic,
+                joint_type=None if j is None else j.type,
+                lower=None if j is None else j.lower,
+                upper=None if j is None else j.upper,
+                mass=None if link.inertial is None else round(link.inertial.mass, 9),
             )
         )
     movable = sorted({p.joint_type for p in parts if p.joint_type and p.joint_type != "fixed"})
     size: tuple[float | None, float | None, float | None] = (None, None, None)
-    bounds = meta.get("bounds")
-    if isinstance(bounds, list) and len(bounds) == 2:
-        size = tuple(float(hi) - float(lo) for lo, hi in zip(bounds[0], bounds[1], strict=True))  # type: ignore[assignment]
+    if asset.bounds is not None:
+        ext = asset.bounds[1] - asset.bounds[0]
+        size = (float(ext[0]), float(ext[1]), float(ext[2]))
     checks = checks_from_report(report)
-    status = provenance.pop("status", None) or report.get("status") or "ok"
+    status = provenance.pop("status", None) or (report.status if report else "ok")
     reason = provenance.pop("failure_reason", None)
     if status == "failed" and reason is None:
-        reason = (
-            report.get("failure_reason")
-            or ", ".join(c.name for c in checks if not c.passed)
-            or None
-        )
-    repairs = report.get("repairs", [])
+        reason = ", ".join(c.name for c in checks if not c.passed) or None
+    repairs = [] if report is None else report.repairs
     known = {f.name for f in fields(AssetRecord)}
     extra = sorted(set(provenance) - known)
     if extra:
         raise TypeError(f"unknown asset record fields: {extra}")
     rec = AssetRecord(
-        id=str(provenance.pop("id", None) or meta.get("id") or asset_dir.name),
+        id=str(provenance.pop("id", None) or asset.id or asset_dir.name),
         status=status,
-        category=provenance.pop("category", None) or meta.get("category", "unknown"),
+        category=provenance.pop("category", None) or asset.category,
         part_count=len(parts),
         joint_types=",".join(movable),
         size=size,
         failure_reason=reason,
-        repairs=tuple(r if isinstance(r, str) else json.dumps(r) for r in repairs),
+        repairs=tuple(json.dumps(_jsonable(asdict(r))) for r in repairs),
         path=str(provenance.pop("path", asset_dir)),
         **provenance,
     )
@@ -652,6 +660,15 @@ def register_asset_dir(catalog: Catalog, asset_dir: str | Path, **provenance: An
 # --------------------------------------------------------------------------- display
 
 _STATUS_STYLE = {"ok": "green", "repaired": "yellow", "failed": "red"}
+
+
+def _repair_text(stored: str) -> str:
+    """``kind(target)`` of a catalogued repair (the JSON of a RepairRecord)."""
+    try:
+        r = json.loads(stored)
+        return f"{r['kind']}({r['target']})"
+    except (json.JSONDecodeError, KeyError, TypeError):
+        return stored
 
 
 def _size_text(size: tuple[float | None, ...]) -> str:
@@ -673,18 +690,18 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
     t.add_column("failure / repairs", overflow="fold", max_width=48)
     for r in rows:
         style = _STATUS_STYLE.get(r.status, "")
-        note = r.failure_reason or ("; ".join(r.repairs) if r.repairs else "")
+        note = r.failure_reason or "; ".join(_repair_text(x) for x in r.repairs)
         gen = r.generator or "-"
         if r.generator_version:
             gen += f" {r.generator_version}"
         t.add_row(
-            r.id,
+            escape(r.id),
             f"[{style}]{r.status}[/{style}]" if style else r.status,
             r.category,
             "-" if r.part_count is None else str(r.part_count),
             r.joint_types or "-",
             _size_text(r.size),
             gen,
-            note,
+            escape(note),
         )
     return t

@@ -15,7 +15,6 @@ inside OUT are linked, previews elsewhere are copied there.
 from __future__ import annotations
 
 import html
-import json
 import logging
 import math
 import os
@@ -29,8 +28,9 @@ from urllib.parse import quote
 import numpy as np
 from PIL import Image
 
-from asset_pipeline.inputs import MASK_SUFFIX
-from asset_pipeline.registry import (
+from asset_pipeline.asset_io import ASSET_JSON_NAME, AssetFormatError, load_asset
+from asset_pipeline.built_asset import BuiltAsset
+from asset_pipeline.catalog import (
     AssetRecord,
     Catalog,
     CatalogError,
@@ -39,6 +39,8 @@ from asset_pipeline.registry import (
     checks_from_report,
     records_from_asset_dir,
 )
+from asset_pipeline.inputs import IMAGE_SUFFIXES, MASK_SUFFIX
+from asset_pipeline.validate import ReportFormatError, read_report
 from generator.articulated import atomic_write_bytes
 
 log = logging.getLogger(__name__)
@@ -61,20 +63,11 @@ class _Entry:
     record: AssetRecord
     asset_dir: Path | None
     checks: list[CheckRecord] = field(default_factory=list)
-    meta: dict[str, Any] = field(default_factory=dict)
+    asset: BuiltAsset | None = None
     error: str | None = None
 
 
 # --------------------------------------------------------------------------- collection
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        d = json.loads(path.read_text(encoding="utf-8"))
-        return d if isinstance(d, dict) else {}
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
-        log.warning("%s: unreadable: %s", path, e)
-        return {}
 
 
 def _entries_from_catalog(out: Path) -> list[_Entry]:
@@ -89,7 +82,11 @@ def _entries_from_catalog(out: Path) -> list[_Entry]:
 
 def _entries_from_folders(out: Path) -> list[_Entry]:
     entries = []
-    for d in sorted(p for p in out.iterdir() if p.is_dir() and (p / "asset.json").is_file()):
+    for d in sorted(
+        p
+        for p in out.iterdir()
+        if p.is_dir() and not p.name.startswith(".") and (p / ASSET_JSON_NAME).is_file()
+    ):
         try:
             rec, _, checks = records_from_asset_dir(d)
             entries.append(_Entry(record=rec, asset_dir=d, checks=checks))
@@ -100,12 +97,15 @@ def _entries_from_folders(out: Path) -> list[_Entry]:
 
 
 def _complete(e: _Entry) -> None:
-    if e.asset_dir is None:
+    if e.asset_dir is None or not (e.asset_dir / ASSET_JSON_NAME).is_file():
         return
-    if (e.asset_dir / "asset.json").is_file():
-        e.meta = _read_json(e.asset_dir / "asset.json")
-    if not e.checks and (e.asset_dir / "report.json").is_file():
-        e.checks = checks_from_report(_read_json(e.asset_dir / "report.json"))
+    try:
+        e.asset = load_asset(e.asset_dir)
+        if not e.checks:
+            e.checks = checks_from_report(read_report(e.asset_dir))
+    except (AssetFormatError, ReportFormatError) as err:
+        log.warning("%s", err)
+        e.error = str(err)
 
 
 # --------------------------------------------------------------------------- images
@@ -119,7 +119,7 @@ def _find_input(e: _Entry, out: Path) -> tuple[Path | None, Path | None]:
     """The input photo and mask of an asset (copies in the asset folder first)."""
     image = mask = None
     if e.asset_dir is not None:
-        for name in ("input.png", "input.jpg", "input.jpeg"):
+        for name in (f"input{suffix}" for suffix in IMAGE_SUFFIXES):
             if (e.asset_dir / name).is_file():
                 image = e.asset_dir / name
                 break
@@ -210,13 +210,10 @@ def _num(v: Any) -> str:
     return "-" if v is None else str(v)
 
 
-def _limits(j: dict[str, Any]) -> str:
-    lo, hi = j.get("lower"), j.get("upper")
-    if not isinstance(lo, (int, float)) or not isinstance(hi, (int, float)):
-        return "-"
-    if j.get("type") == "revolute":
+def _limits(joint_type: str, lo: float, hi: float) -> str:
+    if joint_type == "revolute":
         return f"{math.degrees(lo):.1f}° … {math.degrees(hi):.1f}°"
-    if j.get("type") == "prismatic":
+    if joint_type == "prismatic":
         return f"{lo:.3f} … {hi:.3f} m"
     return f"{lo:g} … {hi:g}"
 
@@ -230,16 +227,16 @@ def _figure(src: str | None, caption: str) -> str:
     )
 
 
-def _joint_table(meta: dict[str, Any]) -> str:
-    joints = [j for j in meta.get("joints", []) if isinstance(j, dict)]
-    if not joints:
+def _joint_table(asset: BuiltAsset | None) -> str:
+    parts = [] if asset is None else asset.movable_parts()
+    if not parts:
         return "<p class='meta'>no joints recorded</p>"
     rows = "".join(
-        f"<tr><td>{_e(j.get('child', j.get('name', '?')))}</td><td>{_e(j.get('type', '?'))}</td>"
-        f"<td class='num'>{_e(_num([round(float(a), 3) for a in j.get('axis', [])]))}</td>"
-        f"<td class='num'>{_e(_num([round(float(a), 3) for a in j.get('origin', [])]))}</td>"
-        f"<td class='num'>{_e(_limits(j))}</td></tr>"
-        for j in joints
+        f"<tr><td>{_e(p.name)}</td><td>{_e(p.joint_type)}</td>"
+        f"<td class='num'>{_e(_num([round(a, 3) for a in p.axis]))}</td>"
+        f"<td class='num'>{_e(_num([round(a, 3) for a in p.origin]))}</td>"
+        f"<td class='num'>{_e(_limits(p.joint_type, p.lower, p.upper))}</td></tr>"
+        for p in parts
     )
     return (
         "<table><tr><th>part</th><th>type</th><th>axis</th><th>origin (m)</th><th>limits</th></tr>"
@@ -282,6 +279,8 @@ def _card(e: _Entry, imgs: dict[str, str | None]) -> str:
     ]
     if r.failure_reason:
         parts.append(f"<p class='reason'>failure: {_e(r.failure_reason)}</p>")
+    if e.error:
+        parts.append(f"<p class='reason'>unreadable: {_e(e.error)}</p>")
     parts.append(
         "<div class='imgs'>"
         + _figure(imgs["input"], "input")
@@ -289,7 +288,7 @@ def _card(e: _Entry, imgs: dict[str, str | None]) -> str:
         + _figure(imgs["preview"], "preview: rest / open")
         + "</div>"
     )
-    parts.append("<div class='cols'><div>" + _joint_table(e.meta) + "</div><div>")
+    parts.append("<div class='cols'><div>" + _joint_table(e.asset) + "</div><div>")
     parts.append(_checks_table(e.checks))
     if r.repairs:
         parts.append(
@@ -302,7 +301,10 @@ def _card(e: _Entry, imgs: dict[str, str | None]) -> str:
 
 
 def write_gallery(out_dir: str | Path) -> Path:
-    """Write ``out_dir/index.html`` (and thumbnails under ``out_dir/gallery/``); return its path."""
+    """Write ``out_dir/index.html`` (and thumbnails under ``out_dir/gallery/``); return its path.
+
+    Raises FileNotFoundError for a missing folder and CatalogError for a damaged catalog.
+    """
     out = Path(out_dir)
     if not out.is_dir():
         raise FileNotFoundError(f"{out}: no such output folder")

@@ -176,9 +176,9 @@ def find_sources(path: str | Path) -> list[Path]:
             continue
         try:
             data = json.loads(c.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError, UnicodeDecodeError):
-            if path.is_file():
-                raise ImportFormatError(f"{c}: not readable JSON") from None
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
+            if path.is_file() or c.name == "object.json":
+                raise ImportFormatError(f"{c}: not readable JSON: {e}") from None
             continue
         if _tree_of(data) is not None:
             found.append(c)

@@ -60,12 +60,13 @@ def render_preview(
     import sapien
     from PIL import Image
 
+    from .asset_io import load_asset
     from .sapien_loading import load_articulation
 
     scene, cam = stage
     try:
-        sapien.physx.clear_cache()
-        art = load_articulation(scene, asset_dir / "model.urdf", fix_root=True)
+        asset = load_asset(asset_dir, metadata=False)
+        art = load_articulation(scene, asset, fix_root=True, fresh_meshes=True)
     except Exception as e:  # noqa: BLE001 - SAPIEN raises many types
         log.warning("%s: no preview: the asset does not load for rendering: %s", asset_dir.name, e)
         return None

@@ -1,10 +1,11 @@
-"""Physics rig of an articulated object and its URDF / MJCF text.
+"""Physics rig of an articulated object: the object model becomes a built asset.
 
-:func:`build_rig` turns a metric, watertight :class:`ArticulatedObject` and the
-number of convex pieces per part into a :class:`Rig` (links with mass, centre of
-mass and inertia; joints with limits, damping and friction; file names by the
-built-asset layout of ``docs/architecture.md``). :func:`urdf_string` and
-:func:`mjcf_string` write that rig; neither touches the file system.
+:func:`build_rig` turns a metric, watertight :class:`ArticulatedObject` and its
+convex collision pieces into a :class:`~asset_pipeline.built_asset.BuiltAsset`
+(links with mass, centre of mass and inertia; joints with limits, damping and
+friction; handles; file names by the built-asset layout of ``docs/architecture.md``).
+It is the one place where the object model's joints and handles are converted; it
+touches no file (:mod:`asset_pipeline.asset_io` writes the result).
 
 Link frames: the ``base`` link frame is the object frame; a movable part's link
 frame sits at its joint origin with axes parallel to the object frame, so
@@ -80,11 +81,27 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
-from lxml import etree
 
 from generator.articulated import ArticulatedObject, Part
+from generator.articulated import Handle as ObjectHandle
+
+from .built_asset import (
+    BuiltAsset,
+    CollisionPiece,
+    Handle,
+    Inertial,
+    Joint,
+    JointPhysics,
+    Link,
+    Visual,
+)
 
 log = logging.getLogger(__name__)
+
+#: A fallback handle sits this far (fraction of the part's width) in from the edge
+#: opposite the hinge, but at most HANDLE_INSET_MAX metres.
+HANDLE_INSET_FRACTION = 0.15
+HANDLE_INSET_MAX = 0.05
 
 
 @dataclass(frozen=True)
@@ -108,16 +125,6 @@ MATERIALS: dict[str, MaterialModel] = {
 }
 #: Density (kg/m^3) of each material itself (a solid part of it).
 DENSITIES: dict[str, float] = {k: m.density for k, m in MATERIALS.items()}
-
-
-@dataclass(frozen=True)
-class JointPhysics:
-    """Per-joint physics: damping, Coulomb friction, effort and velocity limits (SI units)."""
-
-    damping: float
-    friction: float
-    effort: float = 100.0
-    velocity: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -292,48 +299,7 @@ def mean_rgba(mesh: trimesh.Trimesh) -> np.ndarray:
     return np.array([0.7, 0.7, 0.7, 1.0])
 
 
-# --------------------------------------------------------------------------- rig
-
-
-@dataclass
-class RigLink:
-    """One link: name, semantic, material, frame origin (3,) in the object frame,
-    mass properties with the COM in the link frame, file names relative to the asset."""
-
-    name: str
-    semantic: str
-    material: str
-    frame_origin: np.ndarray
-    mass: MassProperties
-    visual_glb: str
-    visual_obj: str
-    collisions: list[str]
-    rgba: np.ndarray
-
-
-@dataclass
-class RigJoint:
-    """One joint; ``origin`` (3,) in the parent link frame, ``axis`` (3,) unit."""
-
-    name: str
-    type: str
-    parent: str
-    child: str
-    origin: np.ndarray
-    axis: np.ndarray
-    lower: float
-    upper: float
-    physics: JointPhysics
-
-
-@dataclass
-class Rig:
-    name: str
-    links: list[RigLink]
-    joints: list[RigJoint]
-
-    def link(self, name: str) -> RigLink:
-        return next(link for link in self.links if link.name == name)
+# --------------------------------------------------------------------------- object -> asset
 
 
 def link_origin(obj: ArticulatedObject, part_name: str) -> np.ndarray:
@@ -360,193 +326,136 @@ def part_solid(part: Part) -> trimesh.Trimesh:
     return trimesh.util.concatenate([q.to_mesh() for q in part.primitives])
 
 
+def fallback_handle(part: Part) -> ObjectHandle:
+    """Grasp point of a movable part without a modelled handle (object frame, kind ``none``).
+
+    The centre of the part's front face (the +x side of the bounding box of its solid,
+    :func:`part_solid`: what it collides with), moved in the face plane away from the
+    hinge line toward the opposite edge, stopping
+    ``min(HANDLE_INSET_FRACTION * extent, HANDLE_INSET_MAX)`` short of it. Prismatic
+    parts keep the face centre. The handle axis is the hinge axis for revolute
+    parts (a bar parallel to the hinge) and +y otherwise.
+    """
+    lo, hi = part_solid(part).bounds
+    centre = np.array([hi[0], 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])])
+    j = part.joint
+    if j is None or j.type != "revolute":
+        return ObjectHandle(position=centre, axis=np.array([0.0, 1.0, 0.0]), kind="none")
+    axis = np.asarray(j.axis, dtype=float)
+    away = centre - j.origin
+    away -= axis * float(away @ axis)  # perpendicular to the hinge line
+    away[0] = 0.0  # stay on the front face
+    n = float(np.linalg.norm(away))
+    if n < 1e-9:
+        return ObjectHandle(position=centre, axis=axis, kind="none")
+    d = away / n
+    half = 0.5 * (hi - lo)
+    reach = float(np.abs(d) @ half)  # distance from the centre to the bbox edge along d
+    inset = min(HANDLE_INSET_FRACTION * 2 * reach, HANDLE_INSET_MAX)
+    return ObjectHandle(position=centre + d * max(reach - inset, 0.0), axis=axis, kind="none")
+
+
+def textured_for_render(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` with its vertex colours baked into a palette texture.
+
+    SAPIEN's renderer ignores glTF vertex colours (COLOR_0) but draws base-colour
+    textures, so coloured visuals are written textured; textured meshes pass through.
+    """
+    if mesh.visual.kind not in ("vertex", "face"):
+        return mesh
+    out = mesh.copy()
+    out.visual = mesh.visual.to_texture()
+    return out
+
+
+def _in_link_frame(mesh: trimesh.Trimesh, origin: np.ndarray) -> trimesh.Trimesh:
+    out = mesh.copy()
+    out.apply_translation(-np.asarray(origin, dtype=float))
+    return out
+
+
 def build_rig(
     obj: ArticulatedObject,
-    piece_counts: Mapping[str, int],
+    pieces: Mapping[str, list[trimesh.Trimesh]],
     name: str,
     physics: PhysicsDefaults = PhysicsDefaults(),
-) -> Rig:
-    """The rig of a metric, watertight ``obj`` with ``piece_counts[part]`` collision pieces.
+) -> BuiltAsset:
+    """The built asset of a metric, watertight ``obj`` whose part ``p`` collides as the
+    convex ``pieces[p]`` (object frame).
 
-    Base link first, then parts in object order. File names follow the built-asset
-    layout: ``visual/<part>.glb``, ``visual/<part>.obj``, ``collision/<part>_<k>.obj``.
+    This is where the object model's parts, joints and handles become the built
+    asset's links, joints and handles (the only such conversion). Base link first,
+    then parts in object order; meshes are moved into their link frames and kept in
+    memory for :func:`asset_pipeline.asset_io.save_asset`. File names follow the
+    built-asset layout: ``visual/<part>.glb`` (+ ``.obj``), ``collision/<part>_<k>.obj``.
     """
-    links, joints = [], []
+    links, joints, handles = [], [], {}
     order = [obj.base] + [p for p in obj.parts if not p.is_base]
     for p in order:
         origin = link_origin(obj, p.name)
         mp = mass_properties(part_solid(p), physics.material(p.material), physics.min_mass)
         mp.com = mp.com - origin
         links.append(
-            RigLink(
+            Link(
                 name=p.name,
                 semantic=p.semantic,
                 material=p.material,
-                frame_origin=origin,
-                mass=mp,
-                visual_glb=f"visual/{p.name}.glb",
-                visual_obj=f"visual/{p.name}.obj",
-                collisions=[f"collision/{p.name}_{k}.obj" for k in range(piece_counts[p.name])],
+                inertial=Inertial(mass=mp.mass, com=mp.com, inertia=mp.inertia),
+                visuals=[
+                    Visual(
+                        filename=f"visual/{p.name}.glb",
+                        name=f"{p.name}_visual",
+                        mesh=textured_for_render(_in_link_frame(p.mesh, origin)),
+                    )
+                ],
+                collisions=[
+                    CollisionPiece(
+                        filename=f"collision/{p.name}_{k}.obj",
+                        name=f"{p.name}_collision_{k}",
+                        mesh=_in_link_frame(piece, origin),
+                    )
+                    for k, piece in enumerate(pieces[p.name])
+                ],
                 rgba=mean_rgba(p.mesh),
             )
         )
-        if p.joint is not None:
-            j = p.joint
-            axis = np.asarray(j.axis, dtype=float)
-            axis = axis / np.linalg.norm(axis)
-            joint_physics = physics.joint(j.type)
-            cap = joint_inertia(mp, j.type, axis) / physics.min_damping_time
-            if joint_physics.damping > cap:  # a small part: its damping time >= the floor
-                joint_physics = replace(joint_physics, damping=cap)
-            joints.append(
-                RigJoint(
-                    name=f"joint_{p.name}",
-                    type=j.type,
-                    parent=j.parent,
-                    child=p.name,
-                    origin=origin - link_origin(obj, j.parent),
-                    axis=axis,
-                    lower=j.lower,
-                    upper=j.upper,
-                    physics=joint_physics,
-                )
+        if p.joint is None:
+            continue
+        j = p.joint
+        axis = np.asarray(j.axis, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        joint_physics = physics.joint(j.type)
+        cap = joint_inertia(mp, j.type, axis) / physics.min_damping_time
+        if joint_physics.damping > cap:  # a small part: its damping time >= the floor
+            joint_physics = replace(joint_physics, damping=cap)
+        pivot = np.eye(4)
+        pivot[:3, 3] = origin - link_origin(obj, j.parent)
+        joints.append(
+            Joint(
+                name=f"joint_{p.name}",
+                type=j.type,
+                parent=j.parent,
+                child=p.name,
+                origin=pivot,
+                axis=axis,
+                lower=j.lower,
+                upper=j.upper,
+                physics=joint_physics,
             )
-    return Rig(name=name, links=links, joints=joints)
-
-
-# --------------------------------------------------------------------------- text
-
-
-def fmt(x: float) -> str:
-    """Deterministic short float text (10 significant digits, no negative zero)."""
-    return f"{float(x) + 0.0:.10g}"
-
-
-def vec(v: np.ndarray) -> str:
-    return " ".join(fmt(x) for x in np.asarray(v, dtype=float).ravel())
-
-
-def _to_text(root: etree._Element) -> str:
-    return etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="utf-8").decode()
-
-
-def urdf_string(rig: Rig) -> str:
-    """URDF of ``rig``: one link per part, one ``<collision>`` per convex piece."""
-    robot = etree.Element("robot", name=rig.name)
-    for link in rig.links:
-        el = etree.SubElement(robot, "link", name=link.name)
-        inertial = etree.SubElement(el, "inertial")
-        etree.SubElement(inertial, "origin", xyz=vec(link.mass.com), rpy="0 0 0")
-        etree.SubElement(inertial, "mass", value=fmt(link.mass.mass))
-        inertia = link.mass.inertia
-        etree.SubElement(
-            inertial,
-            "inertia",
-            ixx=fmt(inertia[0, 0]),
-            ixy=fmt(inertia[0, 1]),
-            ixz=fmt(inertia[0, 2]),
-            iyy=fmt(inertia[1, 1]),
-            iyz=fmt(inertia[1, 2]),
-            izz=fmt(inertia[2, 2]),
         )
-        visual = etree.SubElement(el, "visual", name=f"{link.name}_visual")
-        etree.SubElement(visual, "origin", xyz="0 0 0", rpy="0 0 0")
-        geom = etree.SubElement(visual, "geometry")
-        etree.SubElement(geom, "mesh", filename=link.visual_glb)
-        for k, path in enumerate(link.collisions):
-            col = etree.SubElement(el, "collision", name=f"{link.name}_collision_{k}")
-            etree.SubElement(col, "origin", xyz="0 0 0", rpy="0 0 0")
-            geom = etree.SubElement(col, "geometry")
-            etree.SubElement(geom, "mesh", filename=path)
-    for j in rig.joints:
-        el = etree.SubElement(robot, "joint", name=j.name, type=j.type)
-        etree.SubElement(el, "parent", link=j.parent)
-        etree.SubElement(el, "child", link=j.child)
-        etree.SubElement(el, "origin", xyz=vec(j.origin), rpy="0 0 0")
-        if j.type != "fixed":
-            etree.SubElement(el, "axis", xyz=vec(j.axis))
-            etree.SubElement(
-                el,
-                "limit",
-                lower=fmt(j.lower),
-                upper=fmt(j.upper),
-                effort=fmt(j.physics.effort),
-                velocity=fmt(j.physics.velocity),
+        if j.movable:
+            h = p.handle if p.handle is not None else fallback_handle(p)
+            handles[p.name] = Handle(
+                position_link=np.asarray(h.position, dtype=float) - origin,
+                axis=np.asarray(h.axis, dtype=float),
+                kind=h.kind,
             )
-            etree.SubElement(
-                el, "dynamics", damping=fmt(j.physics.damping), friction=fmt(j.physics.friction)
-            )
-    return _to_text(robot)
-
-
-_MJCF_JOINT = {"prismatic": "slide", "revolute": "hinge"}
-
-
-def mjcf_string(rig: Rig) -> str:
-    """MJCF of ``rig``: base body welded to the world, slide/hinge joints for movable parts.
-
-    Collision geoms are the convex pieces; the visual mesh is a non-colliding geom
-    (``contype=0 conaffinity=0``, group 1) with the part's mean colour. Mesh files are
-    the OBJ files of the layout, relative to the model file.
-    """
-    root = etree.Element("mujoco", model=rig.name)
-    etree.SubElement(root, "compiler", angle="radian", meshdir=".", autolimits="true")
-    asset = etree.SubElement(root, "asset")
-    for link in rig.links:
-        etree.SubElement(asset, "mesh", name=f"{link.name}_visual", file=link.visual_obj)
-        for k, path in enumerate(link.collisions):
-            etree.SubElement(asset, "mesh", name=f"{link.name}_collision_{k}", file=path)
-    world = etree.SubElement(root, "worldbody")
-    bodies: dict[str, etree._Element] = {}
-    joint_of = {j.child: j for j in rig.joints}
-    for link in rig.links:
-        j = joint_of.get(link.name)
-        parent = world if j is None else bodies[j.parent]
-        pos = link.frame_origin if j is None else j.origin
-        body = etree.SubElement(parent, "body", name=link.name, pos=vec(pos))
-        bodies[link.name] = body
-        inertia = link.mass.inertia
-        etree.SubElement(
-            body,
-            "inertial",
-            pos=vec(link.mass.com),
-            mass=fmt(link.mass.mass),
-            # MuJoCo order: Ixx Iyy Izz Ixy Ixz Iyz
-            fullinertia=vec(inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]),
-        )
-        if j is not None and j.type in _MJCF_JOINT:
-            etree.SubElement(
-                body,
-                "joint",
-                name=j.name,
-                type=_MJCF_JOINT[j.type],
-                axis=vec(j.axis),
-                range=vec([j.lower, j.upper]),
-                limited="true",
-                damping=fmt(j.physics.damping),
-                frictionloss=fmt(j.physics.friction),
-                actuatorfrcrange=vec([-j.physics.effort, j.physics.effort]),
-            )
-        etree.SubElement(
-            body,
-            "geom",
-            name=f"{link.name}_visual",
-            type="mesh",
-            mesh=f"{link.name}_visual",
-            contype="0",
-            conaffinity="0",
-            group="1",
-            mass="0",
-            rgba=vec(np.clip(link.rgba, 0, 1)),
-        )
-        for k in range(len(link.collisions)):
-            etree.SubElement(
-                body,
-                "geom",
-                name=f"{link.name}_collision_{k}",
-                type="mesh",
-                mesh=f"{link.name}_collision_{k}",
-                group="3",
-                mass="0",
-            )
-    return _to_text(root)
+    return BuiltAsset(
+        id=name,
+        links=links,
+        joints=joints,
+        handles=handles,
+        category=obj.category,
+        metric_scale=float(obj.provenance.get("metric_scale", obj.scale or 1.0)),
+        bounds=obj.bounds(),
+    )

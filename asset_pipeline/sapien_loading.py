@@ -1,10 +1,18 @@
-"""SAPIEN scenes that work on these machines, and loading a built asset into one.
+"""SAPIEN scenes that work on these machines, and the one loader of built assets.
+
+:func:`load_articulation` is how validation, previews and the tasks (through
+:func:`articulation_builder` and ManiSkill's loader) put a
+:class:`~asset_pipeline.built_asset.BuiltAsset` into a scene: the URDF with the
+shared :class:`~asset_pipeline.sim_options.SimOptions`, one shape per
+``<collision>``, visuals optional, and the URDF's joint friction (which SAPIEN's
+builder drops) applied afterwards.
 
 SAPIEN 3 needs a render system to load a URDF with visual meshes. On CPU the
 render device is Mesa's lavapipe (``VK_ICD_FILENAMES`` pointing at
 ``lvp_icd.json``, set here when the file exists and the variable is unset);
 when no Vulkan device works, a render system on ``sapien.Device("cpu")`` lets
-visuals load without drawing them. Physics never needs the renderer.
+visuals load without drawing them. Physics never needs the renderer
+(:func:`physics_scene`).
 """
 
 from __future__ import annotations
@@ -12,7 +20,10 @@ from __future__ import annotations
 import logging
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
+
+from .built_asset import BuiltAsset
+from .sim_options import DEFAULT_SIM_OPTIONS, SimOptions, apply_sim_options, configure_urdf_loader
 
 if TYPE_CHECKING:
     import sapien
@@ -62,22 +73,75 @@ def make_scene(timestep: float = 1 / 240, render: bool | None = None) -> sapien.
     return scene
 
 
-def load_articulation(
-    scene: sapien.Scene, urdf_path: str | Path, fix_root: bool = True
-) -> sapien.physx.PhysxArticulation:
-    """Load a built asset's URDF into ``scene`` (one ``<collision>`` per convex piece).
+def physics_scene(options: SimOptions = DEFAULT_SIM_OPTIONS) -> sapien.Scene:
+    """A physics-only SAPIEN scene (CPU PhysX, no renderer) with the options' timestep."""
+    import sapien
 
-    Raises FileNotFoundError for a missing file and RuntimeError when SAPIEN
-    returns nothing.
+    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    scene.set_timestep(options.timestep)
+    return scene
+
+
+def articulation_builder(
+    loader: Any,
+    asset: BuiltAsset,
+    options: SimOptions = DEFAULT_SIM_OPTIONS,
+    *,
+    visuals: bool = True,
+    fix_root: bool | None = None,
+) -> Any:
+    """The articulation builder of ``asset``'s URDF from a SAPIEN or ManiSkill URDF loader.
+
+    The loader is configured with ``options`` (material, fixed root unless
+    ``fix_root`` says otherwise) and one collision shape per ``<collision>`` element.
+    ``visuals=False`` drops the visual meshes (physics-only scenes). Build it, then
+    call :func:`asset_pipeline.sim_options.apply_sim_options` with
+    ``asset.joint_friction`` (:func:`load_articulation` does both).
     """
-    path = Path(urdf_path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: URDF not found")
-    loader = scene.create_urdf_loader()
-    loader.fix_root_link = fix_root
-    art = loader.load(str(path))
-    if art is None:
-        raise RuntimeError(f"{path}: SAPIEN loaded no articulation")
+    configure_urdf_loader(loader, options)
+    if fix_root is not None:
+        loader.fix_root_link = fix_root
+    loader.load_multiple_collisions_from_file = False
+    parsed = loader.parse(str(asset.urdf_path))
+    if isinstance(parsed, dict):  # ManiSkill's loader
+        builders, actors = parsed["articulation_builders"], parsed["actor_builders"]
+    else:  # SAPIEN's: (articulations, actors, cameras)
+        builders, actors = parsed[0], parsed[1]
+    if len(builders) != 1 or actors:
+        raise RuntimeError(
+            f"{asset.urdf_path}: expected one articulation, SAPIEN found {len(builders)} "
+            f"and {len(actors)} separate bodies"
+        )
+    builder = builders[0]
+    if not visuals:
+        for lb in builder.link_builders:
+            lb.visual_records = []
+    return builder
+
+
+def load_articulation(
+    scene: sapien.Scene,
+    asset: BuiltAsset,
+    options: SimOptions = DEFAULT_SIM_OPTIONS,
+    *,
+    visuals: bool = True,
+    fix_root: bool | None = None,
+    fresh_meshes: bool = False,
+) -> sapien.physx.PhysxArticulation:
+    """Load ``asset`` into a plain SAPIEN ``scene`` with ``options`` applied.
+
+    ``fresh_meshes=True`` clears SAPIEN's cache of cooked meshes first: a repaired
+    collision file keeps its name, and SAPIEN would otherwise reuse the old shape.
+    """
+    import sapien
+
+    if fresh_meshes:
+        sapien.physx.clear_cache()
+    builder = articulation_builder(
+        scene.create_urdf_loader(), asset, options, visuals=visuals, fix_root=fix_root
+    )
+    art = builder.build()
+    apply_sim_options(art, options, joint_friction=asset.joint_friction)
     return art
 
 

@@ -26,10 +26,8 @@ Collision-group policy (SAPIEN / PhysX filtering, see
 from __future__ import annotations
 
 import logging
-import xml.etree.ElementTree as ET
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -89,16 +87,6 @@ def configure_urdf_loader(loader: Any, options: SimOptions = DEFAULT_SIM_OPTIONS
     loader.set_material(options.static_friction, options.dynamic_friction, options.restitution)
 
 
-def urdf_joint_friction(urdf: str | Path) -> dict[str, float]:
-    """``<dynamics friction>`` of every joint of a URDF, by joint name."""
-    out = {}
-    for el in ET.parse(urdf).getroot().findall("joint"):
-        dyn = el.find("dynamics")
-        if dyn is not None and dyn.get("friction") is not None:
-            out[el.get("name", "")] = float(dyn.get("friction", "0"))
-    return out
-
-
 def match_joint_name(loaded: str, urdf_names: Iterable[str]) -> str | None:
     """The URDF joint name a loaded joint was built from, or None.
 
@@ -119,22 +107,22 @@ def match_joint_name(loaded: str, urdf_names: Iterable[str]) -> str | None:
 def apply_sim_options(
     articulation: sapien.physx.PhysxArticulation,
     options: SimOptions = DEFAULT_SIM_OPTIONS,
-    urdf: str | Path | None = None,
+    joint_friction: Mapping[str, float] | None = None,
 ) -> None:
     """Apply ``options`` to a loaded articulation, in place.
 
     Sets the material, contact/rest offsets and collision groups of every shape
     of every link, and the articulation's solver iterations. The fixed root and
     the timestep are load-time and scene settings: use
-    :func:`configure_urdf_loader` (or ``load_articulation(..., fix_root=...)``) and
-    ``scene.set_timestep(options.timestep)``. For a ManiSkill ``Articulation``
-    wrapper, call this on each of its ``_objs``.
+    :func:`configure_urdf_loader` and ``scene.set_timestep(options.timestep)``.
+    :func:`asset_pipeline.sapien_loading.load_articulation` does all of it.
 
-    ``urdf``: the asset's URDF; its joint friction is applied. SAPIEN 3.0.3's
-    ``ArticulationBuilder`` drops the ``friction`` it parses (every joint gets
-    PhysX's default 0.05, measured), so pass the URDF wherever friction matters.
-    Joints are matched by name suffix (:func:`match_joint_name`), so this works for
-    SAPIEN's own names and for ManiSkill's prefixed ones alike.
+    ``joint_friction``: the URDF joint friction by joint name
+    (``BuiltAsset.joint_friction``). SAPIEN 3.0.3's ``ArticulationBuilder`` drops
+    the ``friction`` it parses (every joint gets PhysX's default 0.05, measured), so
+    pass it wherever friction matters. Joints are matched by name suffix
+    (:func:`match_joint_name`), so this works for SAPIEN's own names and for
+    ManiSkill's prefixed ones alike.
     """
     material = make_material(options)
     for link in articulation.links:
@@ -148,11 +136,10 @@ def apply_sim_options(
             else:
                 groups[2] |= 1 << OBJECT_IGNORE_BIT
             shape.set_collision_groups(groups)
-    if urdf is not None:
-        friction = urdf_joint_friction(urdf)
+    if joint_friction is not None:
         for joint in articulation.get_active_joints():
-            urdf_name = match_joint_name(joint.name, friction)
+            urdf_name = match_joint_name(joint.name, joint_friction)
             if urdf_name is not None:
-                joint.set_friction(friction[urdf_name])
+                joint.set_friction(joint_friction[urdf_name])
     articulation.set_solver_position_iterations(options.solver_position_iterations)
     articulation.set_solver_velocity_iterations(options.solver_velocity_iterations)

@@ -1,36 +1,35 @@
 """Load built articulated assets into SAPIEN / ManiSkill3 scenes.
 
-- :mod:`sim_envs.catalog`: where assets come from (a folder or an SQLite catalog),
-  filtered by category and joint type;
+- :mod:`sim_envs.asset_sources`: where assets come from (a folder, a catalog or a
+  list), filtered by category and joint type;
 - :mod:`sim_envs.scene`: loading one asset into a ManiSkill scene (fixed base,
   friction material and collision policy from asset_pipeline.sim_options)
   and placement helpers.
 """
 
-from sim_envs.catalog import (
-    AssetRecord,
+from asset_pipeline.built_asset import BuiltAsset, MovablePart
+from sim_envs.asset_sources import (
     AssetSource,
     AssetSourceError,
     CatalogSource,
     FolderSource,
     ListSource,
-    MovablePart,
     open_source,
-    read_asset,
+    read_task_asset,
 )
-from sim_envs.scene import configure_ground, load_asset, robot_ignores_ground
+from sim_envs.scene import add_to_scene, configure_ground, robot_ignores_ground
 
 __all__ = [
-    "AssetRecord",
+    "add_to_scene",
     "AssetSource",
     "AssetSourceError",
+    "BuiltAsset",
     "CatalogSource",
     "FolderSource",
     "ListSource",
     "MovablePart",
     "configure_ground",
-    "load_asset",
     "open_source",
-    "read_asset",
+    "read_task_asset",
     "robot_ignores_ground",
 ]

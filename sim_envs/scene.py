@@ -23,14 +23,14 @@ import numpy as np
 import sapien
 import torch
 
+from asset_pipeline.built_asset import BuiltAsset
+from asset_pipeline.sapien_loading import articulation_builder
 from asset_pipeline.sim_options import (
     DEFAULT_SIM_OPTIONS,
     OBJECT_IGNORE_BIT,
     SimOptions,
     apply_sim_options,
-    configure_urdf_loader,
 )
-from sim_envs.catalog import AssetRecord
 
 if TYPE_CHECKING:
     from mani_skill.envs.scene import ManiSkillScene
@@ -41,36 +41,29 @@ log = logging.getLogger(__name__)
 ROBOT_GROUND_COLLISION_BIT = 28
 
 
-def load_asset(
+def add_to_scene(
     scene: ManiSkillScene,
-    record: AssetRecord,
+    asset: BuiltAsset,
     scene_idxs: list[int] | None = None,
     name: str | None = None,
     options: SimOptions = DEFAULT_SIM_OPTIONS,
     initial_pose: sapien.Pose | None = None,
 ) -> Articulation:
-    """Build ``record``'s URDF as a fixed-base articulation in the sub-scenes ``scene_idxs``.
+    """Build ``asset`` as a fixed-base articulation in the sub-scenes ``scene_idxs``.
 
-    One ``<collision>`` element per convex piece (the built-asset layout), so the
-    loader's multiple-collisions option stays off. Links keep their URDF (part) names.
-    Must run while the scene is being built (``_load_scene``), before GPU setup.
+    The one SAPIEN loader (:func:`asset_pipeline.sapien_loading.articulation_builder`),
+    through ManiSkill's URDF loader. Links keep their URDF (part) names. Must run while
+    the scene is being built (``_load_scene``), before GPU setup.
     """
-    loader = scene.create_urdf_loader()
-    configure_urdf_loader(loader, options)
-    loader.fix_root_link = True
-    loader.load_multiple_collisions_from_file = False
-    builders = loader.parse(str(record.urdf))["articulation_builders"]
-    if len(builders) != 1:
-        raise ValueError(f"{record.urdf}: expected one articulation, found {len(builders)}")
-    builder = builders[0]
+    builder = articulation_builder(scene.create_urdf_loader(), asset, options, fix_root=True)
     if scene_idxs is not None:
         builder.set_scene_idxs(scene_idxs)
     builder.initial_pose = initial_pose or sapien.Pose()
-    art = builder.build(name=name or record.id)
+    art = builder.build(name=name or asset.id)
     for obj in art._objs:
         # materials, groups, solver iterations and the URDF's joint friction (SAPIEN's
         # builder drops it); joints match by name suffix despite ManiSkill's prefixes
-        apply_sim_options(obj, options, urdf=record.urdf)
+        apply_sim_options(obj, options, joint_friction=asset.joint_friction)
     return art
 
 

@@ -43,12 +43,13 @@ from mani_skill.utils.building.ground import build_ground
 from mani_skill.utils.structs import Articulation, Link, Pose
 from mani_skill.utils.structs.types import GPUMemoryConfig, SimConfig
 
+from asset_pipeline.built_asset import BuiltAsset, MovablePart
 from asset_pipeline.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
-from sim_envs.catalog import AssetRecord, AssetSource, MovablePart, open_source
+from sim_envs.asset_sources import AssetSource, open_source
 from sim_envs.scene import (
+    add_to_scene,
     configure_ground,
     handle_world_positions,
-    load_asset,
     robot_ignores_ground,
     rotate_z,
     yaw_quat,
@@ -106,7 +107,7 @@ class ArticulatedPartEnv(BaseEnv):
         **kwargs: Any,
     ) -> None:
         self.asset_source = open_source(assets, category=category, joint_type=self.joint_type)
-        self.asset_records: list[AssetRecord] = self.asset_source.require()
+        self.assets: list[BuiltAsset] = self.asset_source.require()
         self.target_part = target_part
         self.robot_init_qpos_noise = robot_init_qpos_noise
         self.object_pos_noise = object_pos_noise
@@ -173,13 +174,13 @@ class ArticulatedPartEnv(BaseEnv):
     def _load_scene(self, options: dict) -> None:
         self.ground = build_ground(self.scene)
         configure_ground(self.ground, self.sim_options)
-        asset_idx = self._batched_episode_rng.randint(0, len(self.asset_records))
+        asset_idx = self._batched_episode_rng.randint(0, len(self.assets))
         objects: list[Articulation] = []
-        self.episode_assets: list[AssetRecord] = []
+        self.episode_assets: list[BuiltAsset] = []
         self.candidate_parts: list[list[MovablePart]] = []  # per env: the parts to pick from
         cand_links: list[list[Link]] = []
         for i in range(self.num_envs):
-            rec = self.asset_records[int(asset_idx[i])]
+            rec = self.assets[int(asset_idx[i])]
             parts = rec.parts_of_type(self.joint_type)
             if self.target_part is not None:
                 parts = [p for p in parts if p.name == self.target_part]
@@ -187,7 +188,7 @@ class ArticulatedPartEnv(BaseEnv):
                     raise ValueError(
                         f"{rec.id}: no {self.joint_type} part named {self.target_part!r}"
                     )
-            art = load_asset(
+            art = add_to_scene(
                 self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options
             )
             self.remove_from_state_dict_registry(art)
@@ -247,7 +248,7 @@ class ArticulatedPartEnv(BaseEnv):
         self._slot_base_yaw = tensor(rows["yaw"])  # (N, P)
         self._slot_normal = tensor(rows["normal"])  # (N, P, 3) handle face normal, link frame
         self._slot_qstart = tensor(rows["qstart"])  # (N, P, 9) robot joints at the start
-        self._slot_handle_kind = tensor(rows["kind"])  # (N, P, K) one-hot of catalog.HANDLE_KINDS
+        self._slot_handle_kind = tensor(rows["kind"])  # (N, P, K) one-hot of built_asset.HANDLE_KINDS
         n = self.num_envs
         self.part_slot = torch.zeros(n, device=self.device, dtype=torch.long)
         self.episode_parts: list[MovablePart] = [c[0] for c in self.candidate_parts]
@@ -266,10 +267,10 @@ class ArticulatedPartEnv(BaseEnv):
         self._merged_target: dict[tuple[int, ...], Link] = {}
 
     def _placement(
-        self, rec: AssetRecord, part: MovablePart
+        self, rec: BuiltAsset, part: MovablePart
     ) -> tuple[np.ndarray, float, np.ndarray | None]:
         """Robot base (object frame), yaw and start joints for ``part``, cached per process."""
-        key = (str(rec.path), part.name, self.handle_standoff)
+        key = (str(rec.folder), part.name, self.handle_standoff)
         if key not in _PLACEMENTS:
             reach = None
             if part.joint_type == "revolute":

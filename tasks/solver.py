@@ -66,7 +66,8 @@ import gymnasium as gym
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sim_envs.catalog import AssetRecord, ListSource, open_source
+from asset_pipeline.built_asset import BuiltAsset
+from sim_envs.asset_sources import ListSource, open_source
 from tasks.placement import (
     PUSH_MARGIN,
     PUSH_TILTS,
@@ -756,7 +757,7 @@ class PartCheck:
 
 
 def solve_part(
-    record: AssetRecord,
+    record: BuiltAsset,
     part_name: str,
     seed: int = 0,
     closing: bool = False,
@@ -766,13 +767,13 @@ def solve_part(
     """Run the scripted solver on one part of one asset; return the result and env id."""
     import tasks  # noqa: F401  (registers the envs)
 
-    part = next(p for p in record.parts if p.name == part_name)
+    part = next(p for p in record.movable_parts() if p.name == part_name)
     env_id = ENV_FOR_JOINT[part.joint_type]
     if closing:
         env_id = env_id.replace("Open", "Close")
     env = gym.make(
         env_id,
-        assets=ListSource([record.path]),
+        assets=ListSource([record.folder]),
         target_part=part_name,
         obs_mode="state",
         control_mode="pd_ee_delta_pose",
@@ -798,7 +799,7 @@ def check_tasks(
     """
     out: list[PartCheck] = []
     for rec in open_source(path, category=category):
-        for part in rec.parts:
+        for part in rec.movable_parts():
             t0 = time.perf_counter()
             try:
                 res, env_id = solve_part(rec, part.name, seed=seed, config=config)

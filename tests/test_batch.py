@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from asset_pipeline.batch import ConvertSettings, run_convert
-from asset_pipeline.registry import Catalog
+from asset_pipeline.catalog import Catalog
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
 FAST = ConvertSettings(generator="retrieval", validate=False, preview=False)
@@ -93,7 +93,7 @@ def test_killed_run_resumes_without_losing_or_half_making_anything(tmp_path):
     cmd = [
         sys.executable,
         "-m",
-        "asset_pipeline.cli",
+        "pact_cli",
         "convert",
         str(images),
         "--out",

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from asset_pipeline.cli import app
+from pact_cli.main import app
 from generator.procedural import CATEGORIES
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"

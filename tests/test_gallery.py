@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 from asset_pipeline.gallery import write_gallery
-from asset_pipeline.registry import Catalog, register_asset_dir
+from asset_pipeline.catalog import Catalog, register_asset_dir
 
 REPO = Path(__file__).resolve().parents[1]
 CHROMIUM = Path("/usr/bin/chromium")

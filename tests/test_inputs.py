@@ -2,20 +2,45 @@
 
 from __future__ import annotations
 
+import io
 import json
+import os
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from asset_pipeline.inputs import InputError, check_hints, discover_inputs, load_input
+from asset_pipeline.inputs import (
+    ID_PATTERN,
+    IMAGE_SUFFIXES,
+    MASK_MIN_IOU,
+    MASK_SUFFIX,
+    MIN_PHOTO_SIZE,
+    InputError,
+    InputItem,
+    InputListing,
+    SkippedFile,
+    asset_id_for,
+    check_hints,
+    check_mask_matches_photo,
+    discover_inputs,
+    is_reserved_id,
+    load_input,
+)
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
+
+# The object of the synthetic photos: rows 8..40, columns 16..48 of a 64x48 (w x h) image.
+OBJ = (slice(8, 40), slice(16, 48))
 
 
-def _rgba(path: Path, w: int = 8, h: int = 6, opaque: bool = False) -> None:
+def _rgba(path: Path, w: int = 64, h: int = 48, opaque: bool = False) -> None:
+    """An RGBA photo whose alpha silhouette is the OBJ box."""
     a = np.zeros((h, w, 4), np.uint8)
     a[..., :3] = 120
-    a[1:5, 2:6, 3] = 255
+    a[(*OBJ, 3)] = 255
     if opaque:
         a[..., 3] = 255
     Image.fromarray(a, "RGBA").save(path)
@@ -28,11 +53,37 @@ def _mask(path: Path, ids: np.ndarray, mode: str = "L") -> None:
     img.save(path)
 
 
-def _good_mask(w: int = 8, h: int = 6) -> np.ndarray:
+def _good_mask(w: int = 64, h: int = 48) -> np.ndarray:
+    """Base over the OBJ box, a door (id 2) inside it."""
     m = np.zeros((h, w), np.uint8)
-    m[1:5, 2:6] = 1
-    m[2:4, 3:5] = 2
+    m[OBJ] = 1
+    m[12:36, 20:44] = 2
     return m
+
+
+def _on_plain_background(w: int = 128, h: int = 96, box=(slice(20, 80), slice(10, 60))):
+    """(h, w, 3) uint8: a textured dark box on a white background (a product photo)."""
+    rng = np.random.default_rng(0)
+    img = np.full((h, w, 3), 245, np.uint8)
+    img[box] = rng.integers(30, 90, (box[0].stop - box[0].start, box[1].stop - box[1].start, 3))
+    return img
+
+
+def _box_mask(w: int, h: int, box) -> np.ndarray:
+    m = np.zeros((h, w), np.uint8)
+    m[box] = 1
+    return m
+
+
+def _expect(tmp_path: Path, match: str, file: str) -> InputError:
+    (item,) = discover_inputs(tmp_path)
+    with pytest.raises(InputError, match=match) as e:
+        load_input(item)
+    assert str(e.value).startswith(str(tmp_path / file) + ": ")
+    return e.value
+
+
+# --------------------------------------------------------------------------- basics
 
 
 def test_discover_and_load(tmp_path: Path) -> None:
@@ -41,22 +92,25 @@ def test_discover_and_load(tmp_path: Path) -> None:
     (tmp_path / "b.json").write_text(
         json.dumps({"category": "cabinet", "height": 0.9, "id": "cab-b"})
     )
-    Image.new("RGB", (5, 4), (10, 20, 30)).save(tmp_path / "a.jpg")
+    Image.new("RGB", (40, 36), (10, 20, 30)).save(tmp_path / "a.jpg")
     _mask(tmp_path / "orphan.mask.png", _good_mask())
-    items = discover_inputs(tmp_path)
-    assert [i.name for i in items] == ["a", "b"]
-    a, b = items
+    listing = discover_inputs(tmp_path)
+    assert isinstance(listing, InputListing)
+    assert [i.name for i in listing.items] == ["a", "b"]
+    assert [i.name for i in listing] == ["a", "b"] and len(listing) == 2  # acts as the items
+    a, b = listing
     assert a.mask_path is None and a.hints_path is None
     assert b.mask_path == tmp_path / "b.mask.png" and b.hints_path == tmp_path / "b.json"
+    assert (a.asset_id, b.asset_id) == ("a", "cab-b")
 
     la = load_input(a)
-    assert la.image.shape == (4, 5, 3) and la.image.dtype == np.uint8
+    assert la.image.shape == (36, 40, 3) and la.image.dtype == np.uint8
     assert la.alpha is None and la.mask is None and la.hints == {}
     assert la.asset_id == "a" and la.category == "unknown" and la.height is None
 
     lb = load_input(b)
-    assert lb.image.shape == (6, 8, 3) and lb.alpha.shape == (6, 8)
-    assert lb.alpha[2, 3] == 255 and lb.alpha[0, 0] == 0
+    assert lb.image.shape == (48, 64, 3) and lb.alpha.shape == (48, 64)
+    assert lb.alpha[10, 20] == 255 and lb.alpha[0, 0] == 0
     assert lb.mask.dtype == np.uint8 and lb.part_count == 2
     assert (lb.asset_id, lb.category, lb.height) == ("cab-b", "cabinet", 0.9)
 
@@ -70,7 +124,8 @@ def test_input_hash_tracks_every_file(tmp_path: Path) -> None:
     (tmp_path / "x.json").write_text("{}")
     h2 = discover_inputs(tmp_path)[0].input_hash
     assert len({h0, h1, h2}) == 3
-    assert discover_inputs(tmp_path / "x.png")[0].input_hash == h2  # a single photo works too
+    single = discover_inputs(tmp_path / "x.png")  # a single photo works too
+    assert single[0].input_hash == h2 and single.skipped == []
 
 
 def test_opaque_alpha_and_grey_rgb_mask(tmp_path: Path) -> None:
@@ -81,13 +136,6 @@ def test_opaque_alpha_and_grey_rgb_mask(tmp_path: Path) -> None:
     assert np.array_equal(li.mask, _good_mask())
 
 
-def _expect(tmp_path: Path, match: str, file: str) -> None:
-    (item,) = discover_inputs(tmp_path)
-    with pytest.raises(InputError, match=match) as e:
-        load_input(item)
-    assert str(tmp_path / file) in str(e.value)
-
-
 def test_corrupt_image(tmp_path: Path) -> None:
     (tmp_path / "c.png").write_bytes(b"\x89PNG\r\n\x1a\nnot really")
     _expect(tmp_path, "unreadable or corrupt image", "c.png")
@@ -95,8 +143,8 @@ def test_corrupt_image(tmp_path: Path) -> None:
 
 def test_mask_size_mismatch(tmp_path: Path) -> None:
     _rgba(tmp_path / "c.png")
-    _mask(tmp_path / "c.mask.png", _good_mask(w=9))
-    _expect(tmp_path, "mask is 9x6 but the image is 8x6", "c.mask.png")
+    _mask(tmp_path / "c.mask.png", _good_mask(w=65))
+    _expect(tmp_path, "mask is 65x48 but the image is 64x48", "c.mask.png")
 
 
 @pytest.mark.parametrize(
@@ -117,7 +165,7 @@ def test_mask_ids(tmp_path: Path, edit, match: str) -> None:
 
 def test_colour_mask_refused(tmp_path: Path) -> None:
     _rgba(tmp_path / "c.png")
-    a = np.zeros((6, 8, 3), np.uint8)
+    a = np.zeros((48, 64, 3), np.uint8)
     a[2, 2] = (255, 0, 0)
     Image.fromarray(a, "RGB").save(tmp_path / "c.mask.png")
     _expect(tmp_path, "colour channels that differ", "c.mask.png")
@@ -132,12 +180,15 @@ def test_colour_mask_refused(tmp_path: Path) -> None:
         ('{"height": "tall"}', "height"),
         ('{"category": "sofa"}', "category"),
         ('{"id": "../evil"}', "id"),
+        ('{"id": "registry.sqlite"}', "reserved"),
         ("[1, 2]", "JSON object"),
     ],
 )
 def test_bad_hints(tmp_path: Path, text: str, match: str) -> None:
     _rgba(tmp_path / "c.png")
     (tmp_path / "c.json").write_text(text)
+    (item,) = discover_inputs(tmp_path)
+    assert item.asset_id == "c"  # bad hints do not raise here: the id falls back to the name
     _expect(tmp_path, match, "c.json")
 
 
@@ -153,3 +204,289 @@ def test_duplicate_names_and_missing_folder(tmp_path: Path) -> None:
 def test_check_hints_accepts_all_keys() -> None:
     h = {"id": "x_1", "category": "washing_machine", "height": 1, "seed": 3, "notes": "n"}
     assert check_hints(h) == {**h, "height": 1.0}
+
+
+def test_bundled_examples_all_load() -> None:
+    listing = discover_inputs(EXAMPLES)
+    assert len(listing) == 8 and listing.skipped == []
+    for item in listing:
+        assert item.mask_path is not None and item.hints_path is not None
+        loaded = load_input(item)
+        assert loaded.part_count >= 2 and loaded.asset_id == item.name
+
+
+# --------------------------------------------------------------------------- 1. tiny photos
+
+
+@pytest.mark.parametrize("size", [(1, 1), (31, 200), (200, 31)])
+def test_tiny_photo_refused(tmp_path: Path, size: tuple[int, int]) -> None:
+    Image.new("RGB", size, (200, 10, 10)).save(tmp_path / "t.png")
+    err = _expect(tmp_path, "needed to see an object", "t.png")
+    w, h = size
+    assert f"photo is {w}x{h} px; at least 32x32 px are needed to see an object" in str(err)
+
+
+def test_smallest_photo_accepted(tmp_path: Path) -> None:
+    Image.new("RGB", (MIN_PHOTO_SIZE, MIN_PHOTO_SIZE)).save(tmp_path / "t.png")
+    assert load_input(discover_inputs(tmp_path)[0]).image.shape == (32, 32, 3)
+
+
+# --------------------------------------------------------------------------- 2. empty alpha
+
+
+def test_empty_alpha_refused(tmp_path: Path) -> None:
+    Image.new("RGBA", (64, 64), (120, 120, 120, 0)).save(tmp_path / "e.png")
+    err = _expect(tmp_path, "silhouette is empty", "e.png")
+    assert "remove the alpha channel" in str(err) and "paint the object opaque" in str(err)
+
+
+@pytest.mark.parametrize("opaque_pixels, ok", [(63, False), (64, True)])
+def test_alpha_silhouette_minimum(tmp_path: Path, opaque_pixels: int, ok: bool) -> None:
+    a = np.zeros((64, 64, 4), np.uint8)
+    a.reshape(-1, 4)[:opaque_pixels, 3] = 128  # 128 counts as foreground; 64 px is the minimum
+    a[-1, -1, 3] = 127  # semi-transparent background does not count
+    Image.fromarray(a, "RGBA").save(tmp_path / "s.png")
+    if ok:
+        assert load_input(discover_inputs(tmp_path)[0]).alpha is not None
+    else:
+        _expect(tmp_path, "silhouette is empty", "s.png")
+
+
+# --------------------------------------------------------------------------- 3. empty mask
+
+
+def test_empty_mask_refused(tmp_path: Path) -> None:
+    _rgba(tmp_path / "m.png")
+    _mask(tmp_path / "m.mask.png", np.zeros((48, 64), np.uint8))
+    err = _expect(tmp_path, "mask is empty", "m.mask.png")
+    assert "(no pixel has a part id > 0)" in str(err)
+
+
+def test_small_mask_on_busy_photo_kept(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    Image.fromarray(rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)).save(tmp_path / "m.png")
+    m = np.zeros((48, 64), np.uint8)
+    m[20:22, 30:32] = 1  # four pixels of base: small, but a mask
+    _mask(tmp_path / "m.mask.png", m)
+    assert load_input(discover_inputs(tmp_path)[0]).part_count == 1
+
+
+# --------------------------------------------------------------------------- 4. mask vs photo
+
+
+def test_mask_of_another_photo_refused_alpha(tmp_path: Path) -> None:
+    _rgba(tmp_path / "p.png")  # silhouette: rows 8..40, columns 16..48
+    m = np.zeros((48, 64), np.uint8)
+    m[8:40, 40:64] = 1  # IoU 256 / 1536 with the silhouette
+    _mask(tmp_path / "p.mask.png", m)
+    err = _expect(tmp_path, "the mask does not match the photo", "p.mask.png")
+    msg = str(err)
+    assert "IoU 0.17 with the photo's silhouette" in msg and "alpha channel" in msg
+    assert "is it the mask of another photo?" in msg
+
+
+def test_mask_of_another_photo_refused_plain_background(tmp_path: Path) -> None:
+    img = _on_plain_background()  # the object: rows 20..80, columns 10..60
+    Image.fromarray(img).save(tmp_path / "p.jpg", quality=80)
+    _mask(tmp_path / "p.mask.png", _box_mask(128, 96, (slice(10, 90), slice(70, 120))))
+    err = _expect(tmp_path, "the mask does not match the photo", "p.mask.png")
+    assert "IoU 0.00" in str(err) and "plain background" in str(err)
+
+
+def test_matching_mask_on_plain_background_accepted(tmp_path: Path) -> None:
+    box = (slice(20, 80), slice(10, 60))
+    img = _on_plain_background(box=box)
+    img[40:60, 25:45] = 245  # a white panel inside the object is still the object
+    Image.fromarray(img).save(tmp_path / "p.jpg", quality=60)
+    m = _box_mask(128, 96, box)
+    m[30:70, 20:50] = 2
+    _mask(tmp_path / "p.mask.png", m)
+    assert load_input(discover_inputs(tmp_path)[0]).part_count == 2
+
+
+def test_mismatch_not_judged_without_a_silhouette(tmp_path: Path) -> None:
+    """A busy background or a thin plain frame round a busy picture gives no silhouette:
+    nothing is refused."""
+    rng = np.random.default_rng(2)
+    busy = rng.integers(0, 256, (96, 128, 3), dtype=np.uint8)
+    framed = busy.copy()
+    framed[:3], framed[-3:], framed[:, :3], framed[:, -3:] = 255, 255, 255, 255
+    m = _box_mask(128, 96, (slice(10, 30), slice(100, 120)))
+    for name, img in (("busy", busy), ("framed", framed)):
+        Image.fromarray(img).save(tmp_path / f"{name}.png")
+        _mask(tmp_path / f"{name}{MASK_SUFFIX}", m)
+    assert [load_input(i).part_count for i in discover_inputs(tmp_path)] == [1, 1]
+
+
+def test_mask_check_is_cheap_at_1024px() -> None:
+    box = (slice(200, 900), slice(150, 700))
+    img = _on_plain_background(1024, 1024, box)
+    m = _box_mask(1024, 1024, box)
+    best = float("inf")
+    for _ in range(3):
+        t = time.perf_counter()
+        check_mask_matches_photo(m, img, None, "m.mask.png")
+        best = min(best, time.perf_counter() - t)
+    assert best < 0.05
+    assert MASK_MIN_IOU == 0.5
+
+
+# --------------------------------------------------------------------------- 5. formats
+
+
+@pytest.mark.parametrize("suffix", [".webp", ".bmp", ".tif", ".tiff", ".WEBP"])
+def test_more_photo_formats(tmp_path: Path, suffix: str) -> None:
+    assert suffix.lower() in IMAGE_SUFFIXES
+    img = _on_plain_background()
+    Image.fromarray(img).save(
+        tmp_path / f"p{suffix}", **({"lossless": True} if "webp" in suffix.lower() else {})
+    )
+    _mask(tmp_path / "p.mask.png", _box_mask(128, 96, (slice(20, 80), slice(10, 60))))
+    listing = discover_inputs(tmp_path)
+    assert [i.image_path.name for i in listing] == [f"p{suffix}"] and listing.skipped == []
+    loaded = load_input(listing[0])
+    assert np.array_equal(loaded.image, img) and loaded.part_count == 1
+
+
+def test_webp_with_alpha(tmp_path: Path) -> None:
+    a = np.zeros((48, 64, 4), np.uint8)
+    a[(*OBJ, 3)] = 255
+    buf = io.BytesIO()
+    Image.fromarray(a, "RGBA").save(buf, "WEBP", lossless=True)
+    (tmp_path / "w.webp").write_bytes(buf.getvalue())
+    assert load_input(discover_inputs(tmp_path)[0]).alpha[10, 20] == 255
+
+
+# --------------------------------------------------------------------------- 6. skipped files
+
+
+def test_skipped_files_are_reported(tmp_path: Path) -> None:
+    _rgba(tmp_path / "ok.png")
+    (tmp_path / "loop.png").symlink_to("loop.png")
+    (tmp_path / "broken.jpg").symlink_to("missing.jpg")
+    (tmp_path / "notes.txt").write_text("n")
+    Image.new("RGB", (40, 40)).save(tmp_path / "photo.gif")
+    _mask(tmp_path / "orphan.mask.png", _good_mask())
+    (tmp_path / "orphan.json").write_text("{}")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "README").write_text("x")
+    (tmp_path / ".DS_Store").write_bytes(b"\0")
+    os.mkfifo(tmp_path / "pipe.png")  # must not be read (it would block)
+    listing = discover_inputs(tmp_path)
+    assert [i.name for i in listing.items] == ["ok"]
+    reasons = {s.path.name: s.reason for s in listing.skipped}
+    assert all(isinstance(s, SkippedFile) and s.path.parent == tmp_path for s in listing.skipped)
+    assert sorted(reasons) == [
+        "README",
+        "broken.jpg",
+        "loop.png",
+        "notes.txt",
+        "orphan.json",
+        "orphan.mask.png",
+        "photo.gif",
+        "pipe.png",
+        "sub",
+    ]
+    assert reasons["loop.png"].startswith("symlink loop")
+    assert reasons["broken.jpg"].startswith("broken symlink")
+    assert reasons["notes.txt"].startswith("unsupported file type '.txt'")
+    assert reasons["photo.gif"].startswith("unsupported file type '.gif'")
+    assert reasons["README"].startswith("unsupported file type without a suffix")
+    assert reasons["orphan.mask.png"].startswith("mask without a photo")
+    assert reasons["orphan.json"].startswith("hints file without a photo")
+    assert reasons["sub"].startswith("subfolder")
+    assert reasons["pipe.png"].startswith("not a regular file")
+
+
+def test_second_companion_differing_in_case_is_reported(tmp_path: Path) -> None:
+    _rgba(tmp_path / "c.png")
+    (tmp_path / "c.json").write_text("{}")
+    (tmp_path / "C.JSON").write_text('{"id": "other"}')
+    listing = discover_inputs(tmp_path)
+    assert listing[0].hints_path == tmp_path / "c.json"
+    assert [(s.path.name, s.reason.split(" (")[0]) for s in listing.skipped] == [
+        ("C.JSON", "another hints file of the same photo is used")
+    ]
+
+
+def test_discover_refuses_a_file_that_is_not_a_photo(tmp_path: Path) -> None:
+    (tmp_path / "notes.txt").write_text("n")
+    with pytest.raises(InputError, match="not a photo") as e:
+        discover_inputs(tmp_path / "notes.txt")
+    assert str(e.value).startswith(str(tmp_path / "notes.txt"))
+
+
+# --------------------------------------------------------------------------- 7. asset ids
+
+
+@pytest.mark.parametrize(
+    "asset_id",
+    [
+        "registry.sqlite",
+        "Registry.SQLite",
+        "registry.sqlite-wal",
+        "registry.sqlite-shm",
+        "registry.sqlite-journal",
+        "index.html",
+        "INDEX.HTML",
+        "gallery",
+        "Gallery",
+    ],
+)
+def test_reserved_ids_refused(asset_id: str) -> None:
+    assert is_reserved_id(asset_id)
+    with pytest.raises(InputError, match="reserved") as e:
+        check_hints({"id": asset_id}, "photos/c.json")
+    assert str(e.value).startswith("photos/c.json: id: ")
+    assert is_reserved_id(".staging")
+
+
+@pytest.mark.parametrize(
+    "name, expected, note",
+    [
+        ("cab01", "cab01", None),
+        ("kitchen-cab_01.v2", "kitchen-cab_01.v2", None),
+        ("my cabinet (1)", "my_cabinet_1", "id slugified from 'my cabinet (1)'"),
+        ("Küche Schrank", "Kuche_Schrank", "id slugified from 'Küche Schrank'"),
+        ("__draft__ cab", "draft_cab", "id slugified from '__draft__ cab'"),
+        ("a  &  b", "a_b", "id slugified from 'a  &  b'"),
+        ("gallery", "gallery_photo", "id 'gallery_photo' made from 'gallery'"),
+        ("Registry.sqlite", "Registry.sqlite_photo", "id 'Registry.sqlite_photo' made from"),
+        ("x" * 130, "x" * 128, "id slugified from"),
+    ],
+)
+def test_asset_id_for(name: str, expected: str, note: str | None) -> None:
+    got, got_note = asset_id_for(name)
+    assert got == expected
+    if note is None:
+        assert got_note is None
+    else:
+        assert got_note is not None and got_note.startswith(note)
+
+
+@pytest.mark.parametrize("name", ["柜子", "()", "-._", "é" * 200, "index.html", "a" + "é" * 200])
+def test_asset_id_for_always_gives_a_valid_id(name: str) -> None:
+    got, note = asset_id_for(name)
+    assert ID_PATTERN.match(got) and not is_reserved_id(got) and note is not None
+    assert asset_id_for(got) == (got, None)
+    if name == "柜子":
+        assert got.startswith("photo_") and got != asset_id_for("椅子")[0]
+
+
+def test_item_and_loaded_asset_ids_use_the_slug(tmp_path: Path) -> None:
+    _rgba(tmp_path / "my cabinet (1).png")
+    _rgba(tmp_path / "gallery.png")
+    _rgba(tmp_path / "named.png")
+    (tmp_path / "named.json").write_text('{"id": "kitchen_01"}')
+    items = {i.name: i for i in discover_inputs(tmp_path)}
+    assert {n: i.asset_id for n, i in items.items()} == {
+        "gallery": "gallery_photo",
+        "my cabinet (1)": "my_cabinet_1",
+        "named": "kitchen_01",
+    }
+    assert isinstance(items["gallery"], InputItem)
+    loaded = load_input(items["my cabinet (1)"])
+    assert loaded.asset_id == "my_cabinet_1"
+    assert loaded.asset_id_note == "id slugified from 'my cabinet (1)'"
+    named = load_input(items["named"])
+    assert (named.asset_id, named.asset_id_note) == ("kitchen_01", None)

@@ -18,7 +18,7 @@ from generator.pact import (
     generate_parts,
     load_checkpoint,
     load_config,
-    registry,
+    model_configs,
     sample,
     save_checkpoint,
     vae_loss,
@@ -82,7 +82,7 @@ def tiny_inputs(B: int = 2, seed: int = 0):
     return x, cond, mask
 
 
-# --- configs and registry -----------------------------------------------------------
+# --- configs and model classes -----------------------------------------------------------
 
 
 def test_small_and_full_configs_build_with_expected_sizes():
@@ -112,10 +112,10 @@ def test_config_json_round_trip_and_mismatch_is_reported(tmp_path):
     with pytest.raises(ConfigMismatchError):
         config_from_dict(bad)
     with pytest.raises(ValueError, match="unknown"):
-        registry.config_from_dict(PartFlowConfig, {"widht": 3})
-    with pytest.raises(registry.UnknownModelError):
+        model_configs.config_from_dict(PartFlowConfig, {"widht": 3})
+    with pytest.raises(model_configs.UnknownModelError):
         build("nope")
-    assert set(registry.names()) >= {"ss_vae", "vit", "part_flow"}
+    assert set(model_configs.names()) >= {"ss_vae", "vit", "part_flow"}
 
 
 # --- part-aware flow transformer ----------------------------------------------------

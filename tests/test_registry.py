@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from asset_pipeline.registry import (
+from asset_pipeline.catalog import (
     AssetRecord,
     Catalog,
     CatalogError,

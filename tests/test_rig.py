@@ -9,17 +9,16 @@ import pytest
 import trimesh
 from lxml import etree
 
+from asset_pipeline.asset_io import mjcf_string, urdf_string
+from asset_pipeline.built_asset import JointPhysics
 from asset_pipeline.rig import (
     DENSITIES,
     MATERIALS,
-    JointPhysics,
     MaterialModel,
     PhysicsDefaults,
     build_rig,
     mass_properties,
-    mjcf_string,
     sanitize_inertia,
-    urdf_string,
 )
 from generator.articulated import ArticulatedObject, Joint, Part
 
@@ -135,25 +134,41 @@ def _object() -> ArticulatedObject:
     )
 
 
+def _pieces(obj: ArticulatedObject, counts: dict[str, int]) -> dict[str, list[trimesh.Trimesh]]:
+    """``counts[part]`` copies of each part's convex hull, as collision pieces."""
+    return {p.name: [p.mesh.convex_hull] * counts[p.name] for p in obj.parts}
+
+
 def test_build_rig_frames_masses_and_files():
     obj = _object()
     physics = PhysicsDefaults(prismatic=JointPhysics(damping=3.0, friction=0.2, velocity=0.5))
-    rig = build_rig(obj, {"base": 1, "drawer_0": 2, "door_0": 1}, "cab", physics)
+    rig = build_rig(obj, _pieces(obj, {"base": 1, "drawer_0": 2, "door_0": 1}), "cab", physics)
     assert [link.name for link in rig.links] == ["base", "drawer_0", "door_0"]
     drawer = rig.link("drawer_0")
-    assert drawer.collisions == ["collision/drawer_0_0.obj", "collision/drawer_0_1.obj"]
-    assert drawer.visual_glb == "visual/drawer_0.glb" and drawer.visual_obj == "visual/drawer_0.obj"
+    assert [p.filename for p in drawer.collisions] == [
+        "collision/drawer_0_0.obj",
+        "collision/drawer_0_1.obj",
+    ]
+    assert drawer.visuals[0].filename == "visual/drawer_0.glb"
+    assert drawer.visuals[0].obj_filename == "visual/drawer_0.obj"
+    # meshes are in the link frame: the drawer's box centre minus its joint origin
+    np.testing.assert_allclose(
+        drawer.collisions[0].mesh.bounds.mean(0), [0.1 - 0.3, 0, 0.2 - 0.2], atol=1e-7
+    )
     metal = MATERIALS["metal"]  # a closed 0.4 x 0.5 x 0.2 metal box is a skin around foam
     area, volume = 2 * (0.4 * 0.5 + 0.4 * 0.2 + 0.5 * 0.2), 0.4 * 0.5 * 0.2
     skin = area * metal.shell_thickness
     expected = metal.density * skin + metal.core_density * (volume - skin)
-    assert drawer.mass.mass == pytest.approx(expected)
-    np.testing.assert_allclose(drawer.mass.com, [0.1 - 0.3, 0, 0], atol=1e-7)  # link frame
+    assert drawer.inertial.mass == pytest.approx(expected)
+    np.testing.assert_allclose(drawer.inertial.com, [0.1 - 0.3, 0, 0], atol=1e-7)  # link frame
     np.testing.assert_allclose(rig.link("base").rgba, [1, 0, 0, 1])
     j = {x.name: x for x in rig.joints}
     assert j["joint_drawer_0"].physics.damping == 3.0  # override applies
     assert j["joint_door_0"].physics == PhysicsDefaults().revolute
-    np.testing.assert_allclose(j["joint_door_0"].origin, [0.27, -0.25, 0.6])
+    np.testing.assert_allclose(j["joint_door_0"].origin[:3, 3], [0.27, -0.25, 0.6])
+    # handles: the door has none modelled, so the fallback point, in the link frame
+    assert set(rig.handles) == {"drawer_0", "door_0"}
+    assert rig.handles["door_0"].kind == "none"
 
 
 def test_mass_comes_from_the_primitives_when_a_part_has_them():
@@ -169,9 +184,9 @@ def test_mass_comes_from_the_primitives_when_a_part_has_them():
     T[:3, 3] = [0.24, 0, 0.6]
     door.mesh = fragment
     door.primitives = [Primitive("box", [0.06, 0.5, 0.3], T)]
-    rig = build_rig(obj, {"base": 1, "drawer_0": 1, "door_0": 1}, "cab")
+    rig = build_rig(obj, _pieces(obj, {"base": 1, "drawer_0": 1, "door_0": 1}), "cab")
     area = 2 * (0.06 * 0.5 + 0.06 * 0.3 + 0.5 * 0.3)
-    mass = rig.link("door_0").mass
+    mass = rig.link("door_0").inertial
     assert mass.mass == pytest.approx(
         MATERIALS["wood"].density * MATERIALS["wood"].shell_thickness * area
     )
@@ -189,7 +204,7 @@ def test_damping_of_a_tiny_part_is_capped_by_its_inertia():
             "door_1", "door", flap, joint=Joint("revolute", [0.27, 0.275, 0.6], [0, 0, 1], 0.0, 1.5)
         )
     )
-    rig = build_rig(obj, {"base": 1, "drawer_0": 1, "door_0": 1, "door_1": 1}, "cab")
+    rig = build_rig(obj, _pieces(obj, {"base": 1, "drawer_0": 1, "door_0": 1, "door_1": 1}), "cab")
     j = {x.name: x for x in rig.joints}
     m = DENSITIES["wood"] * 0.01 * 0.05 * 0.05  # thinner than two skins: solid
     m = max(m, PhysicsDefaults().min_mass)
@@ -202,7 +217,8 @@ def test_damping_of_a_tiny_part_is_capped_by_its_inertia():
 def test_urdf_text_is_valid_and_complete():
     import yourdfpy
 
-    rig = build_rig(_object(), {"base": 3, "drawer_0": 2, "door_0": 1}, "cab")
+    obj = _object()
+    rig = build_rig(obj, _pieces(obj, {"base": 3, "drawer_0": 2, "door_0": 1}), "cab")
     text = urdf_string(rig)
     assert text == urdf_string(rig)  # deterministic
     urdf = yourdfpy.URDF.load(io.BytesIO(text.encode()), load_meshes=False, build_scene_graph=False)
@@ -224,11 +240,10 @@ def test_mjcf_compiles_in_mujoco():
 
     obj = _object()
     counts = {"base": 1, "drawer_0": 1, "door_0": 1}
-    rig = build_rig(obj, counts, "cab")
+    rig = build_rig(obj, _pieces(obj, counts), "cab")
     assets = {}
     for p in obj.parts:
-        m = p.mesh.copy()
-        m.apply_translation(-rig.link(p.name).frame_origin)
+        m = rig.link(p.name).visuals[0].mesh
         text = trimesh.exchange.obj.export_obj(m, include_color=False, include_texture=False)
         assets[f"visual/{p.name}.obj"] = text.encode()
         assets[f"collision/{p.name}_0.obj"] = text.encode()
@@ -242,7 +257,7 @@ def test_mjcf_compiles_in_mujoco():
     np.testing.assert_allclose(model.jnt_range, [[0.0, 0.3], [0.0, 1.5]])
     np.testing.assert_allclose(model.dof_damping, [2.0, 0.5])
     drawer_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "drawer_0")
-    assert model.body_mass[drawer_id] == pytest.approx(rig.link("drawer_0").mass.mass)
+    assert model.body_mass[drawer_id] == pytest.approx(rig.link("drawer_0").inertial.mass)
     visual = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "base_visual")
     assert model.geom_contype[visual] == 0 and model.geom_conaffinity[visual] == 0
     # the drawer body sits at its joint origin in the world

@@ -3,102 +3,100 @@
 from __future__ import annotations
 
 import json
-import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
+import trimesh
 
-from sim_envs import AssetSourceError, CatalogSource, FolderSource, open_source, read_asset
+from asset_pipeline.asset_io import save_asset
+from asset_pipeline.built_asset import (
+    BuiltAsset,
+    CollisionPiece,
+    Handle,
+    Inertial,
+    Joint,
+    JointPhysics,
+    Link,
+    Visual,
+)
+from asset_pipeline.catalog import AssetRecord, Catalog
+from sim_envs import AssetSourceError, CatalogSource, FolderSource, open_source, read_task_asset
 
 
-def _box(size: list[float], xyz: list[float]) -> str:
-    s = " ".join(f"{v:.4f}" for v in size)
-    p = " ".join(f"{v:.4f}" for v in xyz)
-    geom = f'<origin xyz="{p}"/><geometry><box size="{s}"/></geometry>'
-    return f"<visual>{geom}</visual><collision>{geom}</collision>"
+def _box(size: list[float], xyz: list[float]) -> trimesh.Trimesh:
+    return trimesh.creation.box(
+        extents=size, transform=trimesh.transformations.translation_matrix(xyz)
+    )
 
 
 def write_box_cabinet(
     folder: Path, joint_type: str = "prismatic", aid: str = "fixture_0", category: str = "cabinet"
 ) -> Path:
-    """A minimal hand-written built asset (asset.json + model.urdf): a box carcass with
-    one drawer (prismatic) or one door hinged on its left edge (revolute), a bar handle."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """A minimal built asset written through the asset model: a box carcass with one
+    drawer (prismatic) or one door hinged on its left edge (revolute), a bar handle;
+    one convex piece per box, geometry in the link frames."""
     W, D, H, t = 0.5, 0.4, 0.6, 0.02
-    base = "".join(
-        [
-            _box([D, W, t], [0, 0, t / 2]),
-            _box([D, W, t], [0, 0, H - t / 2]),
-            _box([D, t, H], [0, -W / 2 + t / 2, H / 2]),
-            _box([D, t, H], [0, W / 2 - t / 2, H / 2]),
-            _box([t, W, H], [-D / 2 + t / 2, 0, H / 2]),
-        ]
-    )
+    base = [
+        _box([D, W, t], [0, 0, t / 2]),
+        _box([D, W, t], [0, 0, H - t / 2]),
+        _box([D, t, H], [0, -W / 2 + t / 2, H / 2]),
+        _box([D, t, H], [0, W / 2 - t / 2, H / 2]),
+        _box([t, W, H], [-D / 2 + t / 2, 0, H / 2]),
+    ]
     if joint_type == "prismatic":
         name, origin, axis, upper = "drawer_0", [0.0, 0.0, 0.0], [1, 0, 0], 0.3
-        geom = "".join(
-            [
-                _box([0.02, W - 0.05, H - 0.05], [D / 2 - 0.01, 0, H / 2]),
-                _box([D - 0.06, W - 0.08, 0.01], [0.0, 0, 0.06]),
-                _box([0.02, 0.12, 0.015], [D / 2 + 0.04, 0, H * 0.75]),
-                _box([0.04, 0.015, 0.015], [D / 2 + 0.02, -0.055, H * 0.75]),
-                _box([0.04, 0.015, 0.015], [D / 2 + 0.02, 0.055, H * 0.75]),
-            ]
-        )
+        geom = [
+            _box([0.02, W - 0.05, H - 0.05], [D / 2 - 0.01, 0, H / 2]),
+            _box([D - 0.06, W - 0.08, 0.01], [0.0, 0, 0.06]),
+            _box([0.02, 0.12, 0.015], [D / 2 + 0.04, 0, H * 0.75]),
+            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, -0.055, H * 0.75]),
+            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, 0.055, H * 0.75]),
+        ]
         handle_link, handle_axis = [D / 2 + 0.04, 0.0, H * 0.75], [0, 1, 0]
     else:
         name, origin, axis, upper = "door_0", [D / 2, W / 2, 0.0], [0, 0, 1], 1.57
-        geom = "".join(
-            [
-                _box([0.02, W - 0.01, H - 0.01], [0.01, -W / 2, H / 2]),
-                _box([0.02, 0.015, 0.14], [0.06, -W + 0.06, H / 2]),
-                _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 + 0.05]),
-                _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 - 0.05]),
-            ]
-        )
+        geom = [
+            _box([0.02, W - 0.01, H - 0.01], [0.01, -W / 2, H / 2]),
+            _box([0.02, 0.015, 0.14], [0.06, -W + 0.06, H / 2]),
+            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 + 0.05]),
+            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 - 0.05]),
+        ]
         handle_link, handle_axis = [0.06, -W + 0.06, H / 2], [0, 0, 1]
-    inertia = '<inertia ixx="0.05" iyy="0.05" izz="0.05" ixy="0" ixz="0" iyz="0"/>'
-    urdf = f"""<?xml version="1.0"?>
-<robot name="{aid}">
-  <link name="base"><inertial><mass value="10"/>{inertia}</inertial>{base}</link>
-  <link name="{name}"><inertial><mass value="2"/>{inertia}</inertial>{geom}</link>
-  <joint name="joint_{name}" type="{joint_type}">
-    <parent link="base"/><child link="{name}"/><origin xyz="{" ".join(map(str, origin))}"/>
-    <axis xyz="{" ".join(map(str, axis))}"/><limit lower="0" upper="{upper}" effort="100" velocity="1"/>
-    <dynamics damping="1.0" friction="0.02"/>
-  </joint>
-</robot>"""
-    (folder / "model.urdf").write_text(urdf)
-    meta = {
-        "schema": "pact.asset",
-        "version": 1,
-        "id": aid,
-        "category": category,
-        "metric_scale": 1.0,
-        "bounds": [[-D / 2, -W / 2, 0], [D / 2, W / 2, H]],
-        "links": [{"name": "base", "semantic": "base"}, {"name": name, "semantic": name[:-2]}],
-        "joints": [
-            {
-                "name": f"joint_{name}",
-                "parent": "base",
-                "child": name,
-                "type": joint_type,
-                "origin": origin,
-                "axis": axis,
-                "lower": 0.0,
-                "upper": upper,
-            }
+
+    def link(lname: str, semantic: str, mass: float, boxes: list) -> Link:
+        return Link(
+            name=lname,
+            semantic=semantic,
+            inertial=Inertial(mass, np.zeros(3), np.eye(3) * 0.05),
+            visuals=[Visual(f"visual/{lname}.glb", mesh=trimesh.util.concatenate(boxes))],
+            collisions=[
+                CollisionPiece(f"collision/{lname}_{k}.obj", mesh=b) for k, b in enumerate(boxes)
+            ],
+        )
+
+    pivot = np.eye(4)
+    pivot[:3, 3] = origin
+    asset = BuiltAsset(
+        id=aid,
+        links=[link("base", "base", 10.0, base), link(name, name[:-2], 2.0, geom)],
+        joints=[
+            Joint(
+                f"joint_{name}",
+                joint_type,
+                "base",
+                name,
+                origin=pivot,
+                axis=axis,
+                upper=upper,
+                physics=JointPhysics(damping=1.0, friction=0.02, effort=100.0, velocity=1.0),
+            )
         ],
-        "handles": {
-            name: {
-                "position": [h + o for h, o in zip(handle_link, origin, strict=True)],
-                "position_link": handle_link,
-                "axis": handle_axis,
-                "kind": "bar",
-            }
-        },
-    }
-    (folder / "asset.json").write_text(json.dumps(meta))
+        handles={name: Handle(handle_link, handle_axis, "bar")},
+        category=category,
+        bounds=np.array([[-D / 2, -W / 2, 0], [D / 2, W / 2, H]]),
+    )
+    save_asset(asset, folder)
     return folder
 
 
@@ -108,15 +106,15 @@ def asset_dir(tmp_path: Path) -> Path:
     write_box_cabinet(tmp_path / "cab_door", "revolute", "cab_door")
     write_box_cabinet(tmp_path / "mw_door", "revolute", "mw_door", category="microwave")
     bad = write_box_cabinet(tmp_path / "bad", "prismatic", "bad")
-    (bad / "report.json").write_text(json.dumps({"status": "failed"}))
+    (bad / "report.json").write_text(json.dumps({"schema": "pact.validation", "status": "failed"}))
     (tmp_path / "not_an_asset").mkdir()
     return tmp_path
 
 
 def test_read_asset_parts_and_handles(asset_dir: Path) -> None:
-    rec = read_asset(asset_dir / "cab_door")
+    rec = read_task_asset(asset_dir / "cab_door")
     assert rec.id == "cab_door" and rec.category == "cabinet"
-    (part,) = rec.parts
+    (part,) = rec.movable_parts()
     assert (
         part.name == "door_0"
         and part.joint_type == "revolute"
@@ -136,28 +134,33 @@ def test_folder_source_filters_and_skips_failed(asset_dir: Path) -> None:
 
 
 def test_catalog_source(asset_dir: Path) -> None:
+    with Catalog(asset_dir) as cat:
+        for aid, status, path in [
+            ("cab_drawer", "ok", "cab_drawer"),
+            ("cab_door", "repaired", str(asset_dir / "cab_door")),
+            ("mw_door", "ok", "mw_door"),
+            ("bad", "failed", "bad"),
+        ]:
+            cat.upsert_asset(AssetRecord(id=aid, status=status, path=str(asset_dir / path)))
     db = asset_dir / "registry.sqlite"
-    con = sqlite3.connect(db)
-    con.execute(
-        "CREATE TABLE assets (id TEXT, path TEXT, category TEXT, status TEXT, joint_types TEXT)"
-    )
-    con.executemany(
-        "INSERT INTO assets VALUES (?, ?, ?, ?, ?)",
-        [
-            ("cab_drawer", "cab_drawer", "cabinet", "passed", "prismatic"),
-            ("cab_door", str(asset_dir / "cab_door"), "cabinet", "repaired", '["revolute"]'),
-            ("mw_door", "mw_door", "microwave", "passed", "revolute"),
-            ("bad", "bad", "cabinet", "failed", "prismatic"),
-        ],
-    )
-    con.commit()
-    con.close()
     src = open_source(db)
     assert isinstance(src, CatalogSource)
     assert [r.id for r in src] == ["cab_door", "cab_drawer", "mw_door"]
     assert [r.id for r in open_source(db, category="cabinet", joint_type="revolute")] == [
         "cab_door"
     ]
+
+
+def test_sources_skip_hidden_and_damaged_folders(asset_dir: Path) -> None:
+    """A hidden folder (a set-aside asset) is never used; an asset whose URDF lost a
+    collision file path to outside the folder is skipped with the reason logged."""
+    write_box_cabinet(asset_dir / ".previous" / "cab_drawer", "prismatic", "old")
+    write_box_cabinet(asset_dir / ".hidden_asset", "prismatic", "hidden")
+    urdf = asset_dir / "cab_drawer" / "model.urdf"
+    urdf.write_text(urdf.read_text().replace("collision/drawer_0_0.obj", "/etc/hosts"))
+    assert [r.id for r in FolderSource(asset_dir)] == ["cab_door", "mw_door"]
+    with pytest.raises(AssetSourceError, match="absolute"):
+        read_task_asset(asset_dir / "cab_drawer")
 
 
 def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:

@@ -329,9 +329,7 @@ def test_learning_rate_anneals_linearly_to_zero_at_the_given_step():
     from tasks.train import Args, learning_rate_schedule
 
     assert learning_rate_schedule(Args(learning_rate=3e-4, lr_anneal_steps=None)) == 3e-4
-    lr = learning_rate_schedule(
-        Args(learning_rate=3e-4, total_timesteps=1000, lr_anneal_steps=500)
-    )
+    lr = learning_rate_schedule(Args(learning_rate=3e-4, total_timesteps=1000, lr_anneal_steps=500))
     # SB3 calls it with the remaining progress 1 - steps / total_timesteps
     assert lr(1.0) == pytest.approx(3e-4)
     assert lr(1.0 - 250 / 1000) == pytest.approx(1.5e-4)

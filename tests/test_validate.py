@@ -17,23 +17,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from asset_pipeline.asset_io import load_asset, piece_vertices, read_obj_vertices
 from asset_pipeline.build import build_asset
+from asset_pipeline.sapien_loading import load_articulation, physics_scene
 from asset_pipeline.sim_options import (
     DEFAULT_SIM_OPTIONS,
     OBJECT_IGNORE_BIT,
     SimOptions,
     apply_sim_options,
 )
-from asset_pipeline.validate import (
-    Report,
-    hinge_offset,
-    hull_thickness,
-    load_physics,
-    physics_scene,
-    read_obj_vertices,
-    read_urdf,
-    validate_asset,
-)
+from asset_pipeline.validate import Report, validate_asset
+from asset_pipeline.validate.static import hinge_offset, hull_thickness
 from generator.articulated import save_bundle
 from generator.procedural import CATEGORIES, sample_object
 
@@ -123,7 +117,7 @@ def test_hinge_offset_projects_onto_aabb_surface():
 def test_apply_sim_options_sets_material_groups_and_solver(pristine):
     opts = SimOptions(static_friction=0.9, dynamic_friction=0.7, self_collisions=False)
     scene = physics_scene(opts)
-    art = load_physics(scene, pristine["cabinet"] / "model.urdf", opts)
+    art = load_articulation(scene, load_asset(pristine["cabinet"]), opts, visuals=False)
     assert art.get_solver_position_iterations() == opts.solver_position_iterations
     for link in art.links:
         for shape in link.collision_shapes:
@@ -201,9 +195,7 @@ def test_inverted_door_axis_is_flipped(copy_of):
     assert report.status == "repaired", report.reasons
     meta = json.loads((d / "asset.json").read_text())
     door = next(j for j in meta["joints"] if j["name"] == "joint_door_0")
-    np.testing.assert_allclose(
-        door["axis"], read_urdf(d / "model.urdf").joints["joint_door_0"].axis
-    )
+    np.testing.assert_allclose(door["axis"], load_asset(d).joint("joint_door_0").axis)
 
 
 def test_reversed_limits_fail(copy_of):
@@ -249,20 +241,20 @@ def test_single_link_object_fails_with_a_clear_reason(tmp_path):
 
 def test_overlapping_siblings_are_shrunk(copy_of):
     d = copy_of("cabinet")
-    spec = read_urdf(d / "model.urdf")
+    asset = load_asset(d)
     # the drawer_0 piece with the largest y*z face (its front panel), grown 12 mm up and down
-    pieces = spec.links["drawer_0"].pieces
-    sizes = [np.ptp(read_obj_vertices(p.path), axis=0) for p in pieces]
+    paths = [asset.path_of(p.filename) for p in asset.link("drawer_0").collisions]
+    sizes = [np.ptp(read_obj_vertices(p), axis=0) for p in paths]
     k = int(np.argmax([s[1] * s[2] for s in sizes]))
-    v = read_obj_vertices(pieces[k].path)
+    v = read_obj_vertices(paths[k])
     c = v.mean(0)
     grown = c + (v - c) * np.array([1.0, 1.0, (sizes[k][2] + 0.024) / sizes[k][2]])
     lines, it = [], iter(grown)
-    for line in pieces[k].path.read_text().splitlines():
+    for line in paths[k].read_text().splitlines():
         lines.append(
             "v " + " ".join(f"{x:.9g}" for x in next(it)) if line.startswith("v ") else line
         )
-    pieces[k].path.write_text("\n".join(lines) + "\n")
+    paths[k].write_text("\n".join(lines) + "\n")
     report = validate_asset(d, preview=False)
     assert "rest_penetration[asset]" in _first_failed(report)
     first = report.rounds[0]
@@ -275,10 +267,12 @@ def test_overlapping_siblings_are_shrunk(copy_of):
 
 def test_drawer_range_longer_than_depth_is_shortened(copy_of):
     d = copy_of("cabinet")
-    spec = read_urdf(d / "model.urdf")
+    asset = load_asset(d)
     depth = float(
         np.ptp(
-            np.concatenate([read_obj_vertices(p.path) for p in spec.links["drawer_0"].pieces])[:, 0]
+            np.concatenate([piece_vertices(asset, p) for p in asset.link("drawer_0").collisions])[
+                :, 0
+            ]
         )
     )
     _edit_urdf(
@@ -289,7 +283,7 @@ def test_drawer_range_longer_than_depth_is_shortened(copy_of):
     rec = next(r for r in report.repairs if r.kind == "shorten_prismatic_range")
     assert rec.target == "joint_drawer_0" and rec.after[1] < rec.before[1]
     assert report.status == "repaired", report.reasons
-    new_upper = read_urdf(d / "model.urdf").joints["joint_drawer_0"].upper
+    new_upper = load_asset(d).joint("joint_drawer_0").upper
     assert new_upper == pytest.approx(rec.after[1], rel=1e-6) and new_upper < depth
     meta = json.loads((d / "asset.json").read_text())
     assert next(j for j in meta["joints"] if j["name"] == "joint_drawer_0")[
@@ -332,17 +326,16 @@ def test_drifting_joint_gets_damping(copy_of):
     assert "rest_drift[joint_door_0]" in _first_failed(report)
     assert ("add_damping", "joint_door_0") in _kinds(report)
     assert report.status == "repaired", report.reasons
-    dyn = read_urdf(d / "model.urdf").joints["joint_door_0"]
+    dyn = load_asset(d).joint("joint_door_0").physics
     assert dyn.damping > 0 and dyn.friction > 0
 
 
 def test_hinge_off_the_part_is_projected(copy_of):
     d = copy_of("cabinet")
-    spec = read_urdf(d / "model.urdf")
-    door = spec.joints["joint_door_0"]
-    centre = np.concatenate([read_obj_vertices(p.path) for p in spec.links["door_0"].pieces]).mean(
-        0
-    )
+    asset = load_asset(d)
+    door = asset.joint("joint_door_0")
+    paths = [asset.path_of(p.filename) for p in asset.link("door_0").collisions]
+    centre = np.concatenate([read_obj_vertices(p) for p in paths]).mean(0)
     off = np.array([0.0, 0.08 if centre[1] < 0 else -0.08, 0.0])  # away from the door
     # move the hinge 8 cm away in y while the door's collision geometry stays put
     _edit_urdf(
@@ -353,13 +346,26 @@ def test_hinge_off_the_part_is_projected(copy_of):
             .set("xyz", " ".join(f"{x:.9g}" for x in door.origin[:3, 3] + off))
         ),
     )
-    for p in spec.links["door_0"].pieces:
-        _shift_obj(p.path, -off)
+    for p in paths:
+        _shift_obj(p, -off)
+
+    def world_pieces(a):
+        pose = a.link_poses()["door_0"]
+        return [
+            piece_vertices(a, p) @ pose[:3, :3].T + pose[:3, 3] for p in a.link("door_0").collisions
+        ]
+
+    before = world_pieces(load_asset(d))
     report = validate_asset(d, preview=False)
     assert "hinge_on_part[joint_door_0]" in _first_failed(report)
     rec = next(r for r in report.repairs if r.kind == "project_hinge_origin")
     np.testing.assert_allclose(rec.after, door.origin[:3, 3], atol=1e-6)
     assert report.status == "repaired", report.reasons
+    # the part did not move: only its link frame did (geometry origins compensate)
+    repaired = load_asset(d)
+    for a, b in zip(before, world_pieces(repaired), strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-6)
+    np.testing.assert_allclose(repaired.link("door_0").collisions[0].origin[:3, 3], off, atol=1e-6)
 
 
 def test_no_repair_mode_reports_failure_without_editing(copy_of):
@@ -369,6 +375,77 @@ def test_no_repair_mode_reports_failure_without_editing(copy_of):
     report = validate_asset(d, repair=False, preview=False)
     assert report.status == "failed" and not report.repairs
     assert (d / "model.urdf").read_bytes() == before
+
+
+# --------------------------------------------------------------------------- hostile files
+
+
+def _bytes(d: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(d)): p.read_bytes()
+        for p in sorted(d.rglob("*"))
+        if p.is_file() and p.name != "report.json"
+    }
+
+
+@pytest.mark.parametrize("where", ["../../../etc/passwd", "/etc/passwd", "elsewhere"])
+def test_mesh_paths_outside_the_asset_fail_by_name(copy_of, tmp_path, where):
+    d = copy_of("cabinet")
+    if where == "elsewhere":  # a perfectly valid mesh, but not the asset's own
+        outside = tmp_path / "other" / "piece.obj"
+        outside.parent.mkdir()
+        shutil.copy(d / "collision" / "door_0_0.obj", outside)
+        where = str(outside)
+    _edit_urdf(
+        d, lambda r: r.find("link[@name='door_0']/collision/geometry/mesh").set("filename", where)
+    )
+    report = validate_asset(d, preview=False)
+    assert report.status == "failed" and not report.repairs
+    (urdf,) = report.check("urdf", "asset")
+    assert not urdf.passed and where in urdf.message and "model.urdf" in urdf.message
+    assert "leaves the asset folder" in urdf.message or "absolute" in urdf.message
+    assert not report.check("sapien_load")  # SAPIEN never saw it
+
+
+def test_nan_joint_origin_fails_statically_and_nothing_is_rewritten(copy_of):
+    d = copy_of("cabinet")
+    _edit_urdf(d, lambda r: _joint(r, "joint_door_0").find("origin").set("xyz", "nan 0 0.5"))
+    before = _bytes(d)
+    report = validate_asset(d, preview=False)
+    assert report.status == "failed" and not report.repairs
+    (urdf,) = report.check("urdf", "asset")
+    assert "joint[joint_door_0]/origin@xyz" in urdf.message and "not finite" in urdf.message
+    assert [c.stage for c in report.checks] == ["static"]
+    assert _bytes(d) == before
+
+
+def test_repairs_that_do_not_fix_the_asset_leave_its_files_alone(copy_of):
+    """The inverted door axis is repairable, a flat collision piece of the drawer is not:
+    the flip is made and checked, the asset still fails, so none of its edits may land."""
+    d = copy_of("cabinet")
+    axis = _joint(ET.parse(d / "model.urdf").getroot(), "joint_door_0").find("axis").get("xyz")
+    flipped = " ".join(str(-float(v)) for v in axis.split())
+    _edit_urdf(d, lambda r: _joint(r, "joint_door_0").find("axis").set("xyz", flipped))
+    (d / "collision" / "drawer_0_0.obj").write_text(
+        "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n"
+    )
+    before = _bytes(d)
+    report = validate_asset(d, preview=False)
+    assert report.status == "failed"
+    assert ("flip_axis", "joint_door_0") in _kinds(report)  # tried, and checked again
+    assert (
+        len(report.rounds) == 2 and "opens_outward[joint_door_0]" not in report.rounds[1]["failed"]
+    )
+    assert _bytes(d) == before
+    assert not (d / ".repair").exists()
+
+
+def test_xml_that_is_not_a_urdf_is_called_that(copy_of):
+    d = copy_of("cabinet")
+    (d / "model.urdf").write_text('<?xml version="1.0"?>\n<svg><rect/></svg>\n')
+    report = validate_asset(d, preview=False)
+    (urdf,) = report.check("urdf", "asset")
+    assert report.status == "failed" and "not a URDF" in urdf.message and "<svg>" in urdf.message
 
 
 # --------------------------------------------------------------------------- procedural batch

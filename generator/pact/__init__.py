@@ -2,7 +2,7 @@
 
 Modules: ``ss_vae`` (occupancy <-> latent), ``image_encoder`` (ViT / DINOv2 ViT-L/14),
 ``part_flow`` (part-aware flow transformer), ``flow`` (rectified flow loss and sampler),
-``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``registry``,
+``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``model_configs``,
 ``preprocess`` (foreground crop before the encoder), ``foreground`` (silhouette U-Net).
 """
 
@@ -17,7 +17,7 @@ from . import (  # noqa: F401  (register the models)
 )
 from .checkpoint import load_checkpoint, save_checkpoint
 from .flow import FlowTrainConfig, SamplerConfig, flow_loss, sample
-from .registry import build
+from .model_configs import build
 from .ss_vae import vae_loss
 from .stage1 import Stage1Config, build_stage1, generate_parts, load_config
 

@@ -31,7 +31,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from .registry import register
+from .model_configs import register
 
 HEAD_JOINT_TYPES = ("fixed", "prismatic", "revolute")  # dataset joint_type index - 1
 HEAD_SEMANTICS = ("base", "drawer", "door", "lid")

@@ -1,6 +1,6 @@
 """Checkpoints: one folder per model, ``model.safetensors`` (weights) + ``config.json``.
 
-``config.json`` = {"schema": "pact.checkpoint", "version": 1, "model": <registry name>,
+``config.json`` = {"schema": "pact.checkpoint", "version": 1, "model": <model name>,
 "config": <config dataclass as a dict>}. Folders are written under a temporary name and
 renamed, so a half-written checkpoint never looks whole.
 """
@@ -16,7 +16,7 @@ import torch
 import torch.nn as nn
 from safetensors.torch import load_file, save_file
 
-from . import registry
+from . import model_configs
 
 SCHEMA = "pact.checkpoint"
 VERSION = 1
@@ -29,7 +29,7 @@ class CheckpointError(ValueError):
 def save_checkpoint(model: nn.Module, path: str | Path, extra: dict | None = None) -> Path:
     """Write ``model`` (a registered model with a ``cfg`` dataclass) to folder ``path``."""
     path = Path(path)
-    name = getattr(model, "registry_name", None)
+    name = getattr(model, "model_name", None)
     if name is None:
         raise CheckpointError(f"{type(model).__name__} is not a registered model")
     meta = {
@@ -72,7 +72,23 @@ def load_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> nn.
     cfg = dict(meta["config"])
     if cfg.get("weights"):
         cfg["weights"] = None  # pretrained weights are already in the checkpoint
-    model = registry.build(meta["model"], cfg)
+    model = model_configs.build(meta["model"], cfg)
     state = load_file(str(path / "model.safetensors"), device=str(device))
     model.load_state_dict(state, strict=True)
     return model.to(device)
+
+
+#: The weights shipped with the package; training writes here only when told to.
+SHIPPED_WEIGHTS = Path(__file__).parent / "weights"
+
+
+def check_output_dir(out: str | Path, write_shipped: bool = False) -> None:
+    """Raise ValueError when ``out`` lies inside :data:`SHIPPED_WEIGHTS` and
+    ``write_shipped`` is False (a training run must not overwrite the shipped weights
+    by accident)."""
+    target, shipped = Path(out).resolve(), SHIPPED_WEIGHTS.resolve()
+    if (target == shipped or shipped in target.parents) and not write_shipped:
+        raise ValueError(
+            f"{out}: is inside the shipped weights ({SHIPPED_WEIGHTS}); training writes there "
+            "only when told to (--write-shipped-weights)"
+        )

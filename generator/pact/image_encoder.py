@@ -21,8 +21,8 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from .model_configs import register
 from .preprocess import foreground_crop
-from .registry import register
 from .transformer import MLP, SelfAttention
 
 log = logging.getLogger(__name__)

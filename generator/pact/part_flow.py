@@ -35,7 +35,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 import torch.utils.checkpoint
 
-from .registry import register
+from .model_configs import register
 from .transformer import (
     MLP,
     CrossAttention,

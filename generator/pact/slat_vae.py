@@ -35,7 +35,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from .registry import register
+from .model_configs import register
 from .slat_data import RESOLUTION, SUB
 
 log = logging.getLogger(__name__)

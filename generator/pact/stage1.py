@@ -19,7 +19,7 @@ import torch
 import torch.nn as nn
 from safetensors.torch import load_file, save_file
 
-from . import registry
+from . import model_configs
 from .flow import FlowTrainConfig, SamplerConfig, sample
 from .image_encoder import ViTConfig
 from .part_flow import PartFlowConfig
@@ -73,20 +73,20 @@ _SECTIONS = {
 
 
 def config_from_dict(data: dict[str, Any]) -> Stage1Config:
-    return Stage1Config(**registry.sections_from_dict(_SECTIONS, data, "stage-1")).check()
+    return Stage1Config(**model_configs.sections_from_dict(_SECTIONS, data, "stage-1")).check()
 
 
 def load_config(name_or_path: str | Path) -> Stage1Config:
-    return config_from_dict(registry.read_config_json(name_or_path, CONFIG_DIR, "stage-1"))
+    return config_from_dict(model_configs.read_config_json(name_or_path, CONFIG_DIR, "stage-1"))
 
 
 def build_stage1(cfg: Stage1Config) -> dict[str, nn.Module]:
     """The three stage-1 networks, by role: ``vae``, ``image_encoder``, ``flow``."""
     cfg.check()
     return {
-        "vae": registry.build("ss_vae", cfg.vae),
-        "image_encoder": registry.build("vit", cfg.image_encoder),
-        "flow": registry.build("part_flow", cfg.flow),
+        "vae": model_configs.build("ss_vae", cfg.vae),
+        "image_encoder": model_configs.build("vit", cfg.image_encoder),
+        "flow": model_configs.build("part_flow", cfg.flow),
     }
 
 
@@ -251,7 +251,7 @@ def load_stage1(
     state = load_file(str(path / "model.safetensors"), device=str(device))
     models = {}
     for role, name in (("image_encoder", "vit"), ("flow", "part_flow")):
-        model = registry.build(name, getattr(cfg, role))
+        model = model_configs.build(name, getattr(cfg, role))
         own = {k[len(role) + 1 :]: v for k, v in state.items() if k.startswith(role + ".")}
         model.load_state_dict(own, strict=True)  # casts float16 files back to float32
         models[role] = model.to(device).eval()

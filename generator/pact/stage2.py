@@ -19,7 +19,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 
-from . import registry
+from . import model_configs
 from .articulation import (
     ArticulationHeadConfig,
     ArticulationTargets,
@@ -99,21 +99,21 @@ _CLASSES = {
 
 
 def config_from_dict(data: dict[str, Any]) -> Stage2Config:
-    return Stage2Config(**registry.sections_from_dict(_CLASSES, data, "stage-2")).check()
+    return Stage2Config(**model_configs.sections_from_dict(_CLASSES, data, "stage-2")).check()
 
 
 def load_config(name_or_path: str | Path) -> Stage2Config:
     """``load_config("stage2_small")`` reads configs/stage2_small.json; else a JSON path."""
-    return config_from_dict(registry.read_config_json(name_or_path, CONFIG_DIR, "stage-2"))
+    return config_from_dict(model_configs.read_config_json(name_or_path, CONFIG_DIR, "stage-2"))
 
 
 def build_stage2(cfg: Stage2Config) -> dict[str, nn.Module]:
     cfg.check()
     return {
-        "vae": registry.build("slat_vae", cfg.vae),
-        "image_encoder": registry.build("vit", cfg.image_encoder),
-        "flow": registry.build("stage2_flow", cfg.flow),
-        "head": registry.build("articulation_head", cfg.head),
+        "vae": model_configs.build("slat_vae", cfg.vae),
+        "image_encoder": model_configs.build("vit", cfg.image_encoder),
+        "flow": model_configs.build("stage2_flow", cfg.flow),
+        "head": model_configs.build("articulation_head", cfg.head),
     }
 
 

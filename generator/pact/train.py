@@ -51,7 +51,7 @@ import torch.distributed as dist
 import torch.nn as nn
 import torch.nn.functional as F
 
-from .checkpoint import load_checkpoint, save_checkpoint
+from .checkpoint import check_output_dir, load_checkpoint, save_checkpoint
 from .data import Stage1Dataset
 from .flow import flow_loss
 from .ss_vae import SparseStructureVAE, vae_loss
@@ -98,6 +98,7 @@ class Args:
     limit_objects: int | None = None  # use only the first N objects (tests)
     vae_dir: str | None = None  # frozen VAE for the flow; None: <out>/vae/checkpoint/ss_vae
     init_from: str | None = None  # flow, new run: start from this stage-1 folder's weights
+    write_shipped_weights: bool = False  # allow out_dir inside generator/pact/weights/
 
 
 # --- distributed ----------------------------------------------------------------------
@@ -700,6 +701,7 @@ def train_stage1(
     )
     if args.part not in ("vae", "flow", "all"):
         raise ValueError(f"part must be 'vae', 'flow' or 'all', got {args.part!r}")
+    check_output_dir(args.out_dir, args.write_shipped_weights)
     if args.threads:
         torch.set_num_threads(args.threads)
     cfg = load_config(args.config)

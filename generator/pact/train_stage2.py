@@ -11,8 +11,11 @@ spin-wait for each other (a flow step took 7 s with 2 threads, 0.5-0.9 s with 1)
 
 Reads top to bottom: arguments, data, the loop, checkpoints. Both stages hold out the
 last ``--holdout`` objects of the dataset (never trained on) for the reported figures.
-Checkpoints go to ``--out`` (default generator/pact/weights/small/{slat_vae,stage2}) in
-float16; logs (text + TensorBoard) to runs/pact/stage2/.
+Checkpoints go to ``--out`` (default runs/pact/stage2/weights/{slat_vae,stage2,stage1_head})
+in float16; logs (text + TensorBoard) to ``--logdir``. The models a step builds on (the
+SLAT VAE for ``flow``, stage 1 for ``head-stage1``) are read from ``--out`` when it holds
+them, else from ``--base`` (default: the shipped weights). Writing into the shipped
+weights folder (generator/pact/weights/) needs ``--write-shipped-weights``.
 """
 
 from __future__ import annotations
@@ -30,14 +33,22 @@ import torch
 
 from generator.data.shards import read_manifest
 
-from .checkpoint import load_checkpoint, save_checkpoint
+from . import model_configs
+from .checkpoint import check_output_dir, load_checkpoint, save_checkpoint
 from .preprocess import encoder_inputs
 from .slat_data import SlatObjects, build_cache, dequantize_sdf
 from .slat_vae import SlatVAE, SlatVAETrainConfig, decode_part_mesh, sparse_parts, vae_loss
+from .stage2 import CONFIG_DIR
 
 log = logging.getLogger("pact.train_stage2")
 
 WEIGHTS = Path(__file__).parent / "weights" / "small"
+
+
+def model_dir(args: argparse.Namespace, name: str) -> Path:
+    """Where a model this step builds on is read from: ``--out`` when it has it, else ``--base``."""
+    own = Path(args.out) / name
+    return own if own.is_dir() else Path(args.base) / name
 
 
 def save_fp16(model: torch.nn.Module, path: Path, extra: dict | None = None) -> Path:
@@ -78,7 +89,7 @@ def train_vae(args: argparse.Namespace) -> None:
 
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
-    cfg = json.loads(Path(args.config).read_text())
+    cfg = model_configs.read_config_json(args.config, CONFIG_DIR, "stage-2")
     tcfg = SlatVAETrainConfig(**cfg.get("vae_train", {}))
     data = SlatObjects(
         args.cache, args.data, images=False, max_parts=cfg["flow"]["max_parts"], partial=True
@@ -86,9 +97,7 @@ def train_vae(args: argparse.Namespace) -> None:
     # the last --holdout objects of the whole dataset are never trained on
     n_total = sum(len(sh["objects"]) for sh in read_manifest(args.data)["shards"])
     n_train = min(len(data), n_total - args.holdout)
-    from . import registry
-
-    model = registry.build("slat_vae", cfg["vae"]).to(args.device)
+    model = model_configs.build("slat_vae", cfg["vae"]).to(args.device)
     opt = torch.optim.AdamW(model.parameters(), lr=tcfg.lr, weight_decay=0.0)
     writer = SummaryWriter(args.logdir + "/vae")
     t0, step = time.time(), 0
@@ -150,7 +159,7 @@ def eval_vae(args: argparse.Namespace) -> dict:
     from generator.data.shards import read_manifest
     from generator.metrics import chamfer
 
-    vae = load_fp32(Path(args.out) / "slat_vae").eval()
+    vae = load_fp32(model_dir(args, "slat_vae")).eval()
     data = SlatObjects(args.cache, args.data, images=False, max_parts=8)
     manifest = read_manifest(args.data)
     per_shard = manifest["objects_per_shard"]
@@ -286,8 +295,8 @@ def train_flow(args: argparse.Namespace) -> None:
     cfg = load_config(args.config)
     tcfg = cfg.flow_train
     data = SlatObjects(args.cache, args.data, images=True, max_parts=cfg.flow.max_parts)
-    vae = load_fp32(Path(args.out) / "slat_vae", args.device).eval()
-    vae.source = str(Path(args.out) / "slat_vae")
+    vae = load_fp32(model_dir(args, "slat_vae"), args.device).eval()
+    vae.source = str(model_dir(args, "slat_vae"))
     data.latents = encode_all_latents(data, vae, Path(args.cache), args.device)
     n_train = len(data) - args.holdout
     models = build_stage2(cfg)
@@ -379,14 +388,14 @@ def train_stage1_head(args: argparse.Namespace) -> None:
         pool_slots,
     )
     from .flow import noisy, sample_t
-    from .registry import build
+    from .model_configs import build
     from .stage1 import LatentStats, load_stage1
 
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     out = Path(args.out)
-    s1, s1cfg, stats = load_stage1(out / "stage1", args.device)
-    ss_vae = load_checkpoint(out / "ss_vae", args.device).float().eval()
+    s1, s1cfg, stats = load_stage1(model_dir(args, "stage1"), args.device)
+    ss_vae = load_checkpoint(model_dir(args, "ss_vae"), args.device).float().eval()
     stats = stats or LatentStats()
     K = s1cfg.flow.max_parts
     data = SlatObjects(args.cache, args.data, images=True, max_parts=K)
@@ -449,10 +458,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("what", choices=["cache", "vae", "flow", "eval-vae", "head-stage1"])
     ap.add_argument("--data", default="runs/data/train")
     ap.add_argument("--cache", default="runs/pact/slat_cache")
+    ap.add_argument("--config", default="stage2_small", help="config name or JSON path")
+    ap.add_argument("--out", default="runs/pact/stage2/weights", help="checkpoint folder")
+    ap.add_argument("--base", default=str(WEIGHTS), help="weights the step builds on")
     ap.add_argument(
-        "--config", default=str(Path(__file__).parent / "configs" / "stage2_small.json")
+        "--write-shipped-weights",
+        action="store_true",
+        help="allow --out inside generator/pact/weights/",
     )
-    ap.add_argument("--out", default=str(WEIGHTS))
     ap.add_argument("--logdir", default="runs/pact/stage2")
     ap.add_argument("--minutes", type=float, default=20.0)
     ap.add_argument(
@@ -465,6 +478,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--resume", action="store_true")
     ap.add_argument("--threads", type=int, default=0)
     args = ap.parse_args(argv)
+    if args.what != "cache":
+        try:
+            check_output_dir(args.out, args.write_shipped_weights)
+        except ValueError as e:
+            raise SystemExit(f"error: {e}") from e
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.what == "cache":

@@ -1,8 +1,10 @@
 """The ``pact`` command line: sample, build, validate, convert, train and evaluate.
 
 Library code lives in the packages; this module only parses arguments, shows
-progress and maps failures to exit codes. Commands from the training side
-(``tasks``) are imported lazily inside their command functions.
+progress and maps failures to exit codes: a problem with an input is one line
+``error: PATH: what is wrong, what to do`` and exit code 2, a batch with failed items
+exits 1. Packages are imported inside their command functions, so ``pact --help``
+stays fast.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from generator.procedural import CATEGORIES
@@ -24,6 +27,12 @@ app = typer.Typer(
 )
 # messages are never hard-wrapped: a path in an error stays on one line (greppable)
 console = Console(stderr=True, soft_wrap=True)
+
+
+def fail(message: object, code: int = 2) -> typer.Exit:
+    """Print ``error: MESSAGE`` (never read as markup) and return the exit to raise."""
+    console.print(f"[red]error:[/red] {escape(str(message))}")
+    return typer.Exit(code)
 
 
 def wide_console() -> Console:
@@ -60,8 +69,7 @@ def sample(
             try:
                 obj = sample_object(cat, seed + k, split=split)
             except UnknownCategoryError as e:
-                console.print(f"[red]error:[/red] {e}")
-                raise typer.Exit(2) from e
+                raise fail(e) from e
             d = save_bundle(obj, out / object_id(cat, seed + k, split))
             written.append(d)
     for d in written:
@@ -91,7 +99,7 @@ def eval_gen(
     wide_console().print(format_table(results))
     path = out or pred / "metrics.json"
     atomic_write_bytes(path, json.dumps(results, indent=2, allow_nan=False).encode())
-    console.print(f"wrote {path}")
+    console.print(f"wrote {escape(str(path))}")
     if results["missing"] or results.get("failed"):
         raise typer.Exit(1)
 
@@ -149,10 +157,10 @@ def build(
         if status == "failed":
             bad.append((str(b), detail))
         colour = {"failed": "red", "repaired": "yellow"}.get(status, "green")
-        table.add_row(str(b), f"[{colour}]{status}[/{colour}]", detail)
+        table.add_row(escape(str(b)), f"[{colour}]{status}[/{colour}]", escape(detail))
     wide_console().print(table)
     for where, why in bad:
-        console.print(f"[red]failed[/red] {where}: {why}")
+        console.print(f"[red]failed[/red] {escape(f'{where}: {why}')}")
     if bad:
         raise typer.Exit(1)
 
@@ -174,10 +182,7 @@ def validate_cmd(
         elif p.is_dir():
             assets.extend(sorted(d for d in p.iterdir() if (d / "model.urdf").is_file()))
     if not assets:
-        console.print(
-            "[red]error:[/red] no built asset (model.urdf) under " + ", ".join(map(str, paths))
-        )
-        raise typer.Exit(2)
+        raise fail("no built asset (model.urdf) under " + ", ".join(map(str, paths)))
     table = Table(title="pact validate")
     for col in ("asset", "status", "rounds", "repairs", "failed checks (value / tolerance)"):
         table.add_column(col)
@@ -187,7 +192,9 @@ def validate_cmd(
             report = validate_asset(a, repair=repair, preview=preview, max_rounds=max_rounds)
         except Exception as e:  # a broken asset never stops the batch
             failed += 1
-            table.add_row(str(a), "[red]failed[/red]", "-", "-", f"{type(e).__name__}: {e}")
+            table.add_row(
+                escape(str(a)), "[red]failed[/red]", "-", "-", escape(f"{type(e).__name__}: {e}")
+            )
             continue
         failed += report.status == "failed"
         colour = {"failed": "red", "repaired": "yellow"}.get(report.status, "green")
@@ -195,11 +202,11 @@ def validate_cmd(
             f"{c.key} ({c.value} / {c.tolerance})" for c in report.failed_checks[:5]
         ) or ", ".join(report.reasons[:3])
         table.add_row(
-            str(a),
+            escape(str(a)),
             f"[{colour}]{report.status}[/{colour}]",
             str(len(report.rounds)),
             ", ".join(r.kind for r in report.repairs) or "-",
-            fails,
+            escape(fails),
         )
     wide_console().print(table)
     if failed:
@@ -214,14 +221,13 @@ def ls(
     joint_type: str = typer.Option(None, help="prismatic or revolute."),
 ) -> None:
     """List catalogued assets."""
-    from asset_pipeline.registry import Catalog, CatalogError, format_table
+    from asset_pipeline.catalog import Catalog, CatalogError, format_table
 
     try:
         with Catalog(out, readonly=True) as cat:
             rows = cat.query(status=status, category=category, joint_type=joint_type)
     except CatalogError as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise typer.Exit(2) from e
+        raise fail(e) from e
     wide_console().print(format_table(rows))
 
 
@@ -243,8 +249,7 @@ def import_(
             path, out, ImportOptions(up=up, category=category, overwrite=overwrite)
         )
     except ImportFormatError as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise typer.Exit(2) from e
+        raise fail(e) from e
     for d in written:
         print(d)
 
@@ -254,13 +259,13 @@ def gallery(
     out: Path = typer.Argument(..., help="Output folder of a convert or build run."),
 ) -> None:
     """Write OUT/index.html: inputs, previews, joints and validation status per asset."""
+    from asset_pipeline.catalog import CatalogError
     from asset_pipeline.gallery import write_gallery
 
     try:
         print(write_gallery(out))
-    except FileNotFoundError as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise typer.Exit(2) from e
+    except (FileNotFoundError, CatalogError) as e:
+        raise fail(e) from e
 
 
 @app.command()
@@ -297,12 +302,24 @@ def convert(
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from asset_pipeline.batch import ConvertSettings, run_convert
+    from asset_pipeline.batch import (
+        ConvertSettings,
+        OutputFolderError,
+        OutputLockedError,
+        run_convert,
+    )
+    from asset_pipeline.catalog import CatalogError
+    from asset_pipeline.inputs import InputError
 
     settings = ConvertSettings(generator=generator, validate=validate, preview=preview)
     log_file = None
-    if log_json is not None:
-        log_file = sys.stdout if str(log_json) == "-" else open(log_json, "a")  # noqa: SIM115
+    if log_json is not None and str(log_json) != "-":
+        try:
+            log_file = open(log_json, "a")  # noqa: SIM115
+        except OSError as e:
+            raise fail(f"{log_json}: cannot open the log: {e.strerror}") from e
+    elif log_json is not None:
+        log_file = sys.stdout
     progress = Progress(
         TextColumn("[bold]convert"),
         BarColumn(),
@@ -347,30 +364,36 @@ def convert(
                 on_stage=on_stage,
                 on_result=on_result,
             )
-    except (FileNotFoundError, ValueError) as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise typer.Exit(2) from e
+    except (InputError, OutputFolderError, OutputLockedError, CatalogError, ValueError) as e:
+        raise fail(e) from e
     finally:
         if log_file is not None and log_file is not sys.stdout:
             log_file.close()
     if not quiet:
+        for note in summary.reconciled:
+            console.print(f"[yellow]catalog:[/yellow] {escape(note)}")
+        if summary.ignored:
+            console.print(f"ignored {len(summary.ignored)} file(s) that are not photos:")
+            for f in summary.ignored:
+                console.print(f"  {escape(f'{f.path}: {f.reason}')}")
         table = Table(title=f"pact convert -> {out}")
         for col in ("id", "status", "category", "seconds", "reason"):
             table.add_column(col)
         for r in summary.results:
             colour = {"failed": "red", "repaired": "yellow"}.get(r.status, "green")
+            note = "; ".join(x for x in (r.reason, r.id_note) if x)
             table.add_row(
-                r.id,
+                escape(r.id),
                 f"[{colour}]{r.status}[/{colour}]",
                 r.category,
                 f"{sum(r.stage_seconds.values()):.1f}",
-                r.reason or "",
+                escape(note),
             )
         Console(stderr=True).print(table)
         console.print(
             f"{len(summary.results) - len(summary.failed)} converted, {len(summary.failed)} failed, "
-            f"{len(summary.skipped)} skipped; catalog {out / 'registry.sqlite'}; "
-            f"gallery: pact gallery {out}"
+            f"{len(summary.skipped)} skipped, {len(summary.ignored)} ignored files; "
+            f"catalog {out / 'registry.sqlite'}; gallery: pact gallery {out}"
         )
     if summary.failed:
         raise typer.Exit(1)
@@ -406,13 +429,13 @@ def check_tasks_cmd(
     for r in results:
         ok = "[green]yes[/green]" if r.success else "[red]no[/red]"
         table.add_row(
-            r.asset_id,
+            escape(r.asset_id),
             r.part,
             r.env_id,
             ok,
             f"{r.final_fraction:.2f}",
             f"{r.seconds:.1f}",
-            r.reason,
+            escape(r.reason),
         )
     wide_console().print(table)
     summary = summarize(results)
@@ -487,31 +510,74 @@ def eval_policy(
 def train_gen(
     stage: int = typer.Option(1, "--stage", min=1, max=2, help="PAct stage to train (1 or 2)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder (pact dataset build)."),
-    config: str = typer.Option("small", "--config", help="small, full or a config JSON path."),
+    config: str = typer.Option(
+        "small", "--config", help="small, full or a config JSON path (stage 2: stage2_small, ...)."
+    ),
     what: str = typer.Option(
         "flow", help="Stage 2 only: cache, vae, flow, eval-vae or head-stage1 (see docs/pact.md)."
     ),
-    part: str = typer.Option("all", help="vae, flow or all."),
+    part: str = typer.Option("all", help="Stage 1 only: vae, flow or all."),
     out: Path = typer.Option(
-        Path("runs/pact/stage1"), help="Run folder (checkpoints, log.csv, tb/)."
+        None,
+        help="Run / checkpoint folder (default: runs/pact/stage1, runs/pact/stage2/weights).",
+    ),
+    cache: Path = typer.Option(
+        Path("runs/pact/slat_cache"), help="Stage 2: the token cache (written by --what cache)."
     ),
     resume: bool = typer.Option(
         True, "--resume/--no-resume", help="Continue from the run's checkpoint."
+    ),
+    minutes: float = typer.Option(None, help="Stop (with a checkpoint) after this wall-clock."),
+    steps: int = typer.Option(None, help="Optimiser steps (stage 1: the schedule's length)."),
+    threads: int = typer.Option(None, help="torch threads (1 on a shared 2-core machine)."),
+    write_shipped_weights: bool = typer.Option(
+        False, help="Allow --out inside generator/pact/weights/ (overwrites the shipped model)."
     ),
 ) -> None:
     """Train the PAct generator: stage 1 (sparse-structure VAE, then the part-aware flow) or
     stage 2 (structured-latent VAE, then the stage-2 flow with the articulation head).
 
+    Never writes into generator/pact/weights/ unless --write-shipped-weights is given.
     Stage 1 runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
     """
+    from generator.pact.checkpoint import check_output_dir
+
     if stage == 2:
         from generator.pact.train_stage2 import main as train_stage2
 
-        train_stage2([what, "--data", str(data)])
+        argv = [what, "--data", str(data), "--cache", str(cache)]
+        argv += ["--out", str(out or "runs/pact/stage2/weights")]
+        argv += ["--config", f"stage2_{config}" if config in ("small", "full") else config]
+        if resume:
+            argv.append("--resume")
+        if minutes is not None:
+            argv += ["--minutes", str(minutes)]
+        if steps is not None:
+            argv += ["--steps", str(steps)]
+        if threads is not None:
+            argv += ["--threads", str(threads)]
+        if write_shipped_weights:
+            argv.append("--write-shipped-weights")
+        train_stage2(argv)
         return
     from generator.pact.train import train_stage1
 
-    run = train_stage1(data_dir=data, out_dir=out, config=config, part=part, resume=resume)
+    out = out or Path("runs/pact/stage1")
+    try:
+        check_output_dir(out, write_shipped_weights)
+    except ValueError as e:
+        raise fail(e) from e
+    run = train_stage1(
+        data_dir=data,
+        out_dir=out,
+        config=config,
+        part=part,
+        steps=steps,
+        resume=resume,
+        max_minutes=minutes,
+        threads=threads,
+        write_shipped_weights=write_shipped_weights,
+    )
     console.print(f"checkpoints: {run.checkpoints}")
 
 
@@ -549,8 +615,7 @@ def dataset_build(
             progress=not quiet,
         )
     except DatasetError as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise typer.Exit(2) from e
+        raise fail(e) from e
     print(manifest)
 
 

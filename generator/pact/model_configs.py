@@ -1,4 +1,4 @@
-"""One registry: model names -> (module class, config dataclass).
+"""Model names -> (module class, config dataclass), and configs read from JSON.
 
 Models register themselves with ``@register("name", ConfigCls)`` in their own file;
 ``build("part_flow", cfg)`` makes one from a config dataclass or a plain dict (as read
@@ -27,7 +27,7 @@ def register(name: str, config_cls: type) -> Callable[[type[nn.Module]], type[nn
         if name in _MODELS and _MODELS[name][0] is not cls:
             raise ValueError(f"model name {name!r} registered twice")
         _MODELS[name] = (cls, config_cls)
-        cls.registry_name = name  # type: ignore[attr-defined]
+        cls.model_name = name  # type: ignore[attr-defined]
         return cls
 
     return deco

@@ -1,0 +1,3 @@
+from pact_cli.main import main
+
+main()
