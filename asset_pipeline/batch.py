@@ -116,6 +116,8 @@ class ItemResult:
     generator_version: str = ""
     #: How the id was made when it is not the photo's name or hint (slugified).
     id_note: str | None = None
+    #: Doubts about the item that did not fail it (each naming the file).
+    warnings: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- generators
@@ -189,6 +191,7 @@ def convert_item(
     try:
         t = enter("load")
         loaded = load_input(item)
+        result.warnings = list(loaded.warnings)
         staging = private / result.id
         result.category = loaded.category
         result.stage_seconds["load"] = time.perf_counter() - t
@@ -378,6 +381,7 @@ def _register(catalog: Catalog, out: Path, r: ItemResult, settings_hash: str) ->
         generator=r.generator,
         generator_version=r.generator_version,
         stage_seconds=r.stage_seconds,
+        warnings=tuple(r.warnings),
     )
     if r.path is not None:
         final = _install(Path(r.path), out, r.id, failed=r.status == "failed")
@@ -398,14 +402,19 @@ def _local_results(
     settings: ConvertSettings,
     workers: int,
     on_stage: Callable[[str, str], None] | None,
+    work: Callable[[tuple, Callable[[str], None]], ItemResult] = _convert_in_worker,
 ) -> Iterator[ItemResult]:
+    """Results of ``todo`` from ``workers`` local processes (in this process for 1).
+
+    ``work`` is what a worker runs per item (a module-level function).
+    """
     if workers <= 1:
         for item in todo:
             yield convert_item(
                 item, out, settings, lambda s, n=item.name: on_stage and on_stage(n, s)
             )
         return
-    pool = WorkerPool(_convert_in_worker, workers)
+    pool = WorkerPool(work, workers)
     jobs = [(item, str(out), settings) for item in todo]
 
     def stage_of(job: tuple, stage: str) -> None:

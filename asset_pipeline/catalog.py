@@ -10,8 +10,10 @@ Tables (schema version :data:`SCHEMA_VERSION`, stored in ``PRAGMA user_version``
             ``size_x/y/z`` = rest bounding-box extents in metres), how it went
             (``status`` 'ok' | 'repaired' | 'failed', ``failure_reason``,
             ``repairs`` = JSON list, ``stage_seconds`` = JSON object), ``path`` (the
-            asset folder, relative to the catalog's folder when inside it) and
-            ``created_at`` (UTC ISO-8601 time the row was written).
+            asset folder, relative to the catalog's folder when inside it),
+            ``created_at`` (UTC ISO-8601 time the row was written), ``warnings`` (JSON
+            list of doubts that did not fail the item) and ``fidelity`` (JSON object of
+            the asset's likeness to its photo, NULL when not measured).
 ``parts``   per part: ``name``, ``semantic``, ``joint_type`` (NULL for the base),
             ``lower``, ``upper`` (metres or radians), ``mass`` (kg).
 ``checks``  per validation check: ``name``, ``passed`` (0/1), ``value`` and
@@ -48,7 +50,14 @@ from .validate.report import REPORT_NAME, Report, ReportFormatError, _jsonable, 
 log = logging.getLogger(__name__)
 
 CATALOG_NAME = "registry.sqlite"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+#: SQL that takes a catalog from schema version k to k + 1 (applied in one transaction).
+_MIGRATIONS = {
+    1: (
+        "ALTER TABLE assets ADD COLUMN warnings TEXT NOT NULL DEFAULT '[]';"
+        "ALTER TABLE assets ADD COLUMN fidelity TEXT;"
+    ),
+}
 STATUSES = ("ok", "repaired", "failed")
 
 _SCHEMA = """
@@ -70,7 +79,9 @@ CREATE TABLE IF NOT EXISTS assets (
     repairs           TEXT NOT NULL DEFAULT '[]',
     stage_seconds     TEXT NOT NULL DEFAULT '{}',
     path              TEXT,
-    created_at        TEXT NOT NULL
+    created_at        TEXT NOT NULL,
+    warnings          TEXT NOT NULL DEFAULT '[]',
+    fidelity          TEXT
 );
 CREATE INDEX IF NOT EXISTS assets_status ON assets (status);
 CREATE INDEX IF NOT EXISTS assets_category ON assets (category);
@@ -143,6 +154,8 @@ class AssetRecord:
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
     path: str | None = None
     created_at: str | None = None
+    warnings: tuple[str, ...] = ()
+    fidelity: Mapping[str, Any] | None = None
     #: Filled when read back with details (:meth:`Catalog.get`, ``query(details=True)``).
     parts: tuple[PartRecord, ...] = ()
     checks: tuple[CheckRecord, ...] = ()
@@ -192,6 +205,8 @@ def _database_errors(method: Callable) -> Callable:
     def wrapped(self: Catalog, *args: Any, **kwargs: Any) -> Any:
         try:
             return method(self, *args, **kwargs)
+        except sqlite3.IntegrityError:  # a caller's mistake, not a damaged file
+            raise
         except sqlite3.DatabaseError as e:
             raise CatalogError(
                 f"{self.path}: the catalog is damaged or not a catalog ({e}); move it away "
@@ -255,6 +270,9 @@ class Catalog:
                 f"(this one reads version {SCHEMA_VERSION}); upgrade pact or use another output folder"
             )
         tables = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'").fetchall()
+        if 1 <= version < SCHEMA_VERSION:
+            self._migrate(version)
+            return
         if version == 0 and not tables:
             if self.readonly:
                 raise CatalogError(f"{self.path}: the catalog is empty (no schema)")
@@ -274,6 +292,30 @@ class Catalog:
             f"{self.path}: catalog schema version {version} is not supported "
             f"(this pact reads version {SCHEMA_VERSION}); move the file away to start a new catalog"
         )
+
+    def _migrate(self, version: int) -> None:
+        """Bring an older catalog to :data:`SCHEMA_VERSION` (also when opened read-only:
+        the upgrade only adds columns)."""
+        conn = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+            current = conn.execute("PRAGMA user_version").fetchone()[0]
+            for k in range(current, SCHEMA_VERSION):
+                for statement in _MIGRATIONS[k].split(";"):
+                    if statement.strip():
+                        conn.execute(statement)
+            conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            conn.execute("COMMIT")
+        except sqlite3.OperationalError as e:
+            if conn.in_transaction:
+                conn.execute("ROLLBACK")
+            raise CatalogError(
+                f"{self.path}: catalog schema version {version} needs an upgrade to "
+                f"{SCHEMA_VERSION} and the file cannot be changed ({e})"
+            ) from e
+        finally:
+            conn.close()
+        log.info("upgraded catalog %s from schema %d to %d", self.path, version, SCHEMA_VERSION)
 
     def close(self) -> None:
         if self._conn is not None:
@@ -343,6 +385,8 @@ class Catalog:
             json.dumps(dict(record.stage_seconds)),
             self._store_path(record.path),
             record.created_at or _now(),
+            json.dumps(list(record.warnings)),
+            None if record.fidelity is None else json.dumps(_jsonable(dict(record.fidelity))),
         )
         c = self.conn
         c.execute("BEGIN IMMEDIATE")
@@ -352,8 +396,8 @@ class Catalog:
             c.execute(
                 "INSERT OR REPLACE INTO assets (id, source_image, source_hash, settings_hash, generator,"
                 " generator_version, category, part_count, joint_types, size_x, size_y, size_z, status,"
-                " failure_reason, repairs, stage_seconds, path, created_at)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                " failure_reason, repairs, stage_seconds, path, created_at, warnings, fidelity)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 row,
             )
             c.executemany(
@@ -398,6 +442,7 @@ class Catalog:
         stage_seconds: Mapping[str, float] | None = None,
         path: str | Path | None = None,
         checks: Iterable[CheckRecord] = (),
+        warnings: Iterable[str] = (),
     ) -> None:
         """Record that building ``id`` failed with ``reason`` (replaces any earlier row)."""
         rec = AssetRecord(
@@ -412,6 +457,7 @@ class Catalog:
             failure_reason=reason,
             stage_seconds=dict(stage_seconds or {}),
             path=None if path is None else str(path),
+            warnings=tuple(warnings),
         )
         self.upsert_asset(rec, (), checks)
 
@@ -430,7 +476,7 @@ class Catalog:
     _COLUMNS = (
         "id, status, source_image, source_hash, settings_hash, generator, generator_version,"
         " category, part_count, joint_types, size_x, size_y, size_z, failure_reason, repairs,"
-        " stage_seconds, path, created_at"
+        " stage_seconds, path, created_at, warnings, fidelity"
     )
 
     @staticmethod
@@ -452,6 +498,8 @@ class Catalog:
             stage_seconds=json.loads(r[15] or "{}"),
             path=r[16],
             created_at=r[17],
+            warnings=tuple(json.loads(r[18] or "[]")),
+            fidelity=None if r[19] is None else json.loads(r[19]),
         )
 
     def _details(self, row: AssetRecord) -> AssetRecord:
@@ -662,7 +710,7 @@ def register_asset_dir(catalog: Catalog, asset_dir: str | Path, **provenance: An
 _STATUS_STYLE = {"ok": "green", "repaired": "yellow", "failed": "red"}
 
 
-def _repair_text(stored: str) -> str:
+def repair_text(stored: str) -> str:
     """``kind(target)`` of a catalogued repair (the JSON of a RepairRecord)."""
     try:
         r = json.loads(stored)
@@ -687,10 +735,12 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
     t.add_column("joints")
     t.add_column("size m (x*y*z)", justify="right")
     t.add_column("generator")
-    t.add_column("failure / repairs", overflow="fold", max_width=48)
+    t.add_column("failure / repairs / warnings", overflow="fold", max_width=48)
     for r in rows:
         style = _STATUS_STYLE.get(r.status, "")
-        note = r.failure_reason or "; ".join(_repair_text(x) for x in r.repairs)
+        note = r.failure_reason or "; ".join(
+            [repair_text(x) for x in r.repairs] + [f"warning: {w}" for w in r.warnings]
+        )
         gen = r.generator or "-"
         if r.generator_version:
             gen += f" {r.generator_version}"

@@ -38,6 +38,7 @@ from asset_pipeline.catalog import (
     catalog_path,
     checks_from_report,
     records_from_asset_dir,
+    repair_text,
 )
 from asset_pipeline.inputs import IMAGE_SUFFIXES, MASK_SUFFIX
 from asset_pipeline.validate import ReportFormatError, read_report
@@ -293,7 +294,7 @@ def _card(e: _Entry, imgs: dict[str, str | None]) -> str:
     if r.repairs:
         parts.append(
             "<p class='meta'>repairs:</p><ul>"
-            + "".join(f"<li>{_e(x)}</li>" for x in r.repairs)
+            + "".join(f"<li>{_e(repair_text(x))}</li>" for x in r.repairs)
             + "</ul>"
         )
     parts.append("</div></div></section>")

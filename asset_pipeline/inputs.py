@@ -241,6 +241,7 @@ class LoadedInput:
     image: (H, W, 3) uint8 RGB. alpha: (H, W) uint8 silhouette (255 = object) or
     None when the photo has no alpha channel or a fully opaque one. mask: (H, W)
     uint8 part ids or None. hints: the checked hints (empty when there is no file).
+    warnings: doubts about the item that did not refuse it (each naming the file).
     """
 
     item: InputItem
@@ -248,6 +249,7 @@ class LoadedInput:
     alpha: np.ndarray | None
     mask: np.ndarray | None
     hints: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def asset_id(self) -> str:
@@ -718,6 +720,45 @@ def check_mask_matches_photo(
         )
 
 
+#: The mask's inner part boundaries must run along edges of the photo: the mean edge
+#: strength on them, over the mean inside the object (:func:`mask_edge_support`). A
+#: photo's own mask scores 1.4-6.7 on the bundled examples, another photo's mask 0.0-6.0
+#: (29 of 56 swaps below 1.0); below MASK_EDGE_REFUSE a mask is refused, below
+#: MASK_EDGE_WARN the item carries a warning.
+MASK_EDGE_REFUSE = 0.6
+MASK_EDGE_WARN = 1.0
+#: Edge support is measured on a grid of at most this many pixels a side.
+EDGE_GRID = 512
+
+
+def mask_edge_support(mask: np.ndarray, image: np.ndarray) -> float | None:
+    """How strongly the photo has edges where the mask puts boundaries between parts.
+
+    ``mask``: (H, W) uint8 part ids; ``image``: (H, W, 3) uint8 RGB. Returns the mean
+    gradient magnitude (5 px max-filtered, so a boundary 1-2 px off still counts) on the
+    boundaries between two different non-zero ids, divided by its mean over the mask's
+    foreground eroded by 3 px; None when the mask has no inner boundary. Dimensionless:
+    1 means the boundaries are no stronger than the object's average texture.
+    """
+    from scipy import ndimage
+
+    stride = max(1, -(-max(mask.shape) // EDGE_GRID))
+    m = mask[::stride, ::stride]
+    grey = image[::stride, ::stride].astype(np.float32).mean(axis=2)
+    grad = np.hypot(ndimage.sobel(grey, 1), ndimage.sobel(grey, 0))
+    grad = ndimage.maximum_filter(grad, size=5)
+    inner = np.zeros(m.shape, bool)
+    for dy, dx in ((0, 1), (1, 0)):
+        a, b = m[: m.shape[0] - dy, : m.shape[1] - dx], m[dy:, dx:]
+        inner[: m.shape[0] - dy, : m.shape[1] - dx] |= (a != b) & (a > 0) & (b > 0)
+    inside = ndimage.binary_erosion(m > 0, iterations=3)
+    boundary = ndimage.binary_dilation(inner) & inside
+    if not boundary.any() or not inside.any():
+        return None
+    mean_inside = float(grad[inside].mean())
+    return float(grad[boundary].mean()) / mean_inside if mean_inside > 0 else None
+
+
 # --------------------------------------------------------------------------- hints
 
 
@@ -800,8 +841,19 @@ def load_input(item: InputItem) -> LoadedInput:
     h, w = image.shape[:2]
     mask = None if item.mask_path is None else read_mask(item.mask_path, size=(w, h))
     hints = {} if item.hints_path is None else read_hints(item.hints_path)
+    warnings: list[str] = []
     if mask is not None:
         check_mask_matches_photo(mask, image, alpha, str(item.mask_path))
+        support = mask_edge_support(mask, image)
+        if support is not None and support < MASK_EDGE_WARN:
+            message = (
+                f"{item.mask_path}: the boundaries between the mask's parts do not follow edges "
+                f"in the photo (edge support {support:.2f}, a photo's own mask scores above "
+                f"{MASK_EDGE_WARN}); is it the mask of another photo?"
+            )
+            if support < MASK_EDGE_REFUSE:
+                raise InputError(message + " Use the photo's own mask or delete it")
+            warnings.append(message)
         if alpha is not None:
             outside = int(np.count_nonzero((mask > 0) & (alpha == 0)))
             if outside > 0.01 * mask.size:
@@ -810,4 +862,6 @@ def load_input(item: InputItem) -> LoadedInput:
                     item.mask_path,
                     outside,
                 )
-    return LoadedInput(item=item, image=image, alpha=alpha, mask=mask, hints=hints)
+    return LoadedInput(
+        item=item, image=image, alpha=alpha, mask=mask, hints=hints, warnings=warnings
+    )

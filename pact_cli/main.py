@@ -381,7 +381,7 @@ def convert(
             table.add_column(col)
         for r in summary.results:
             colour = {"failed": "red", "repaired": "yellow"}.get(r.status, "green")
-            note = "; ".join(x for x in (r.reason, r.id_note) if x)
+            note = "; ".join(x for x in (r.reason, r.id_note, *r.warnings) if x)
             table.add_row(
                 escape(r.id),
                 f"[{colour}]{r.status}[/{colour}]",

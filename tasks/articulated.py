@@ -248,7 +248,9 @@ class ArticulatedPartEnv(BaseEnv):
         self._slot_base_yaw = tensor(rows["yaw"])  # (N, P)
         self._slot_normal = tensor(rows["normal"])  # (N, P, 3) handle face normal, link frame
         self._slot_qstart = tensor(rows["qstart"])  # (N, P, 9) robot joints at the start
-        self._slot_handle_kind = tensor(rows["kind"])  # (N, P, K) one-hot of built_asset.HANDLE_KINDS
+        self._slot_handle_kind = tensor(
+            rows["kind"]
+        )  # (N, P, K) one-hot of built_asset.HANDLE_KINDS
         n = self.num_envs
         self.part_slot = torch.zeros(n, device=self.device, dtype=torch.long)
         self.episode_parts: list[MovablePart] = [c[0] for c in self.candidate_parts]

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from pact_cli.main import app
 from generator.procedural import CATEGORIES
+from pact_cli.main import app
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
 runner = CliRunner()

@@ -2,48 +2,24 @@
 
 from __future__ import annotations
 
-import json
 import re
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from asset_fixtures import write_two_part_cabinet
 from PIL import Image
 
-from asset_pipeline.gallery import write_gallery
 from asset_pipeline.catalog import Catalog, register_asset_dir
+from asset_pipeline.gallery import write_gallery
 
 REPO = Path(__file__).resolve().parents[1]
 CHROMIUM = Path("/usr/bin/chromium")
 
 
 def write_asset(folder: Path, id: str, status: str, category: str) -> Path:
-    """Minimal asset.json + report.json of a built asset (docs/architecture.md)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    joints = [
-        {"name": "joint_drawer_0", "parent": "base", "child": "drawer_0", "type": "prismatic",
-         "origin": [0.3, 0, 0.4], "axis": [1, 0, 0], "lower": 0.0, "upper": 0.35},
-        {"name": "joint_door_0", "parent": "base", "child": "door_0", "type": "revolute",
-         "origin": [0.3, -0.4, 0.6], "axis": [0, 0, 1], "lower": 0.0, "upper": 1.5707963},
-    ]  # fmt: skip
-    links = [
-        {"name": n, "semantic": n.split("_")[0], "mass": 1.0}
-        for n in ("base", "drawer_0", "door_0")
-    ]
-    asset = {"schema": "pact.asset", "version": 1, "id": id, "category": category,
-             "bounds": [[-0.3, -0.4, 0.0], [0.3, 0.4, 0.9]], "links": links, "joints": joints}  # fmt: skip
-    checks = [
-        {"name": "loads", "passed": True, "value": 1, "tolerance": None},
-        {"name": "rest_drift", "passed": status != "failed", "value": 0.004, "tolerance": 0.002,
-         "detail": "base drifts"},
-    ]  # fmt: skip
-    repairs = ["raised damping on joint_door_0"] if status == "repaired" else []
-    (folder / "asset.json").write_text(json.dumps(asset))
-    (folder / "report.json").write_text(
-        json.dumps({"status": status, "checks": checks, "repairs": repairs})
-    )
-    return folder
+    return write_two_part_cabinet(folder, id, status, category)
 
 
 def _fake_outputs(tmp_path: Path) -> tuple[Path, Path]:
@@ -76,7 +52,7 @@ def test_gallery_from_folders(tmp_path: Path) -> None:
     assert "from the asset folders" in page
     assert 'src="cab_a/preview.png"' in page
     assert "rest_drift" in page and "0.004" in page and "0.002" in page  # failed check of mw
-    assert "raised damping on joint_door_0" in page  # repairs of cab_b
+    assert "add_damping(joint_door_0)" in page  # repairs of cab_b
     assert "90.0°" in page and "0.350 m" in page  # limits in degrees and metres
     assert "<script" not in page
     assert not re.search(r'src="(/|file:|https?:)', page)  # relative links only

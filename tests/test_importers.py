@@ -214,3 +214,22 @@ def test_arti_tree_key_and_own_bundles(tmp_path: Path) -> None:
         import_path(written / "object.json", tmp_path / "again")
     with pytest.raises(ImportFormatError, match="no CAGE/SINGAPO/PAct"):
         import_path(tmp_path / "out", tmp_path / "again")
+
+
+def test_cli_import_errors_keep_their_brackets_and_name_the_bad_file(tmp_path: Path) -> None:
+    """The messages reach the terminal whole (rich would eat ``[lower, upper]`` as markup),
+    and a folder whose object.json is broken says so, not that none was found."""
+    from typer.testing import CliRunner
+
+    from pact_cli.main import app
+
+    src = make_singapo(tmp_path / "obj")
+    data = json.loads(src.read_text())
+    data["diffuse_tree"][2]["joint"]["range"] = [0, "x"]
+    src.write_text(json.dumps(data))
+    res = CliRunner().invoke(app, ["import", str(tmp_path / "obj"), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert "must be [lower, upper], got [0, 'x']" in " ".join(res.output.split())
+    src.write_text("{ not json")
+    res = CliRunner().invoke(app, ["import", str(tmp_path / "obj"), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "object.json: not readable JSON" in " ".join(res.output.split())

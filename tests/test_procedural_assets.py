@@ -63,7 +63,7 @@ def test_urdf_mjcf_and_sapien_agree_with_the_object(built, cat):
             )
         # SAPIEN: every piece cooked (none silently dropped), joint limits as written.
         scene = make_scene(render=False)
-        art = load_articulation(scene, res.urdf, fix_root=True)
+        art = load_articulation(scene, res.asset, fix_root=True)
         assert collision_shape_counts(art) == res.pieces
         limits = {j.name: j.limits[0] for j in art.active_joints}
         for name, joint in movable.items():

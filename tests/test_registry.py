@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import shutil
 import sqlite3
 from pathlib import Path
 
 import pytest
+from asset_fixtures import write_two_part_cabinet
 from rich.console import Console
 
 from asset_pipeline.catalog import (
@@ -22,40 +24,7 @@ from asset_pipeline.catalog import (
 
 
 def write_asset(folder: Path, id: str, status: str = "ok", category: str = "cabinet") -> Path:
-    """Minimal asset.json + report.json of a built asset (docs/architecture.md)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    asset = {
-        "schema": "pact.asset",
-        "version": 1,
-        "id": id,
-        "category": category,
-        "metric_scale": 1.0,
-        "bounds": [[-0.3, -0.4, 0.0], [0.3, 0.4, 0.9]],
-        "links": [
-            {"name": "base", "semantic": "base", "mass": 12.0},
-            {"name": "drawer_0", "semantic": "drawer", "mass": 1.5},
-            {"name": "door_0", "semantic": "door", "mass": 2.0},
-        ],
-        "joints": [
-            {"name": "joint_drawer_0", "parent": "base", "child": "drawer_0", "type": "prismatic",
-             "origin": [0.3, 0, 0.4], "axis": [1, 0, 0], "lower": 0.0, "upper": 0.35},
-            {"name": "joint_door_0", "parent": "base", "child": "door_0", "type": "revolute",
-             "origin": [0.3, -0.4, 0.6], "axis": [0, 0, 1], "lower": 0.0, "upper": 1.57},
-        ],
-    }  # fmt: skip
-    report = {
-        "status": status,
-        "checks": [
-            {"name": "loads", "passed": True, "value": 1, "tolerance": None},
-            {"name": "rest_drift", "passed": status != "failed", "value": 0.004, "tolerance": 0.002,
-             "detail": "base drifts"},
-            {"name": "sweep", "passed": True, "value": [0.0, 0.35], "tolerance": "range"},
-        ],
-        "repairs": ["raised damping on joint_door_0"] if status == "repaired" else [],
-    }  # fmt: skip
-    (folder / "asset.json").write_text(json.dumps(asset))
-    (folder / "report.json").write_text(json.dumps(report))
-    return folder
+    return write_two_part_cabinet(folder, id, status, category)
 
 
 def test_register_query_and_read_back(tmp_path: Path) -> None:
@@ -86,17 +55,18 @@ def test_register_query_and_read_back(tmp_path: Path) -> None:
         assert [p.name for p in a.parts] == ["base", "drawer_0", "door_0"]
         assert a.parts[1] == PartRecord("drawer_0", "drawer", "prismatic", 0.0, 0.35, 1.5)
         assert a.parts[0].joint_type is None
-        sweep = next(c for c in a.checks if c.name == "sweep")
+        sweep = next(c for c in a.checks if c.name == "drive_reach[joint_drawer_0]")
         assert sweep.value == [0.0, 0.35] and sweep.tolerance == "range"
 
         assert [r.id for r in cat.query()] == ["cab_a", "cab_b", "cab_c", "mw"]
         assert [r.id for r in cat.query(status="ok")] == ["cab_a"]
         assert [r.id for r in cat.query(category="microwave")] == ["mw"]
         assert [r.id for r in cat.query(joint_type="revolute", status="repaired")] == ["cab_b"]
-        assert cat.get("cab_b").repairs == ("raised damping on joint_door_0",)
+        (repair,) = cat.get("cab_b").repairs
+        assert json.loads(repair)["kind"] == "add_damping"
         mw = cat.get("mw")
-        assert mw.failure_reason == "rest_drift"
-        assert [c.name for c in mw.failed_checks] == ["rest_drift"]
+        assert mw.failure_reason == "rest_drift[joint_door_0]"
+        assert [c.name for c in mw.failed_checks] == ["rest_drift[joint_door_0]"]
         assert mw.failed_checks[0].value == pytest.approx(0.004)
         assert cat.get("cab_c").failure_reason == "generator crashed: OOM"
         assert cat.get("nope") is None
@@ -117,9 +87,9 @@ def test_is_done_retries_failures_and_changes(tmp_path: Path) -> None:
         )
         assert cat.is_done("a", "h", "s")
         assert cat.get("a").parts  # the failure's empty parts were replaced
-        (out / "a" / "asset.json").unlink()
-        (out / "a" / "report.json").unlink()
-        (out / "a").rmdir()
+        (out / "a" / "model.urdf").unlink()
+        assert not cat.is_done("a", "h", "s")  # the folder lost a file
+        shutil.rmtree(out / "a")
         assert not cat.is_done("a", "h", "s")  # the folder is gone
 
 
@@ -164,7 +134,7 @@ def test_records_and_table(tmp_path: Path) -> None:
     assert rec.generator == "pact" and len(parts) == 3 and len(checks) == 3
     with pytest.raises(TypeError, match="unknown asset record fields"):
         records_from_asset_dir(tmp_path / "a", colour="red")
-    with pytest.raises(CatalogError, match="not found"):
+    with pytest.raises(CatalogError, match="missing: not a folder"):
         records_from_asset_dir(tmp_path / "missing")
     console = Console(record=True, width=160)
     console.print(format_table([rec, AssetRecord(id="z", status="failed", failure_reason="OOM")]))

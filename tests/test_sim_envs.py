@@ -7,97 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
+from asset_fixtures import write_box_cabinet
 
-from asset_pipeline.asset_io import save_asset
-from asset_pipeline.built_asset import (
-    BuiltAsset,
-    CollisionPiece,
-    Handle,
-    Inertial,
-    Joint,
-    JointPhysics,
-    Link,
-    Visual,
-)
 from asset_pipeline.catalog import AssetRecord, Catalog
 from sim_envs import AssetSourceError, CatalogSource, FolderSource, open_source, read_task_asset
-
-
-def _box(size: list[float], xyz: list[float]) -> trimesh.Trimesh:
-    return trimesh.creation.box(
-        extents=size, transform=trimesh.transformations.translation_matrix(xyz)
-    )
-
-
-def write_box_cabinet(
-    folder: Path, joint_type: str = "prismatic", aid: str = "fixture_0", category: str = "cabinet"
-) -> Path:
-    """A minimal built asset written through the asset model: a box carcass with one
-    drawer (prismatic) or one door hinged on its left edge (revolute), a bar handle;
-    one convex piece per box, geometry in the link frames."""
-    W, D, H, t = 0.5, 0.4, 0.6, 0.02
-    base = [
-        _box([D, W, t], [0, 0, t / 2]),
-        _box([D, W, t], [0, 0, H - t / 2]),
-        _box([D, t, H], [0, -W / 2 + t / 2, H / 2]),
-        _box([D, t, H], [0, W / 2 - t / 2, H / 2]),
-        _box([t, W, H], [-D / 2 + t / 2, 0, H / 2]),
-    ]
-    if joint_type == "prismatic":
-        name, origin, axis, upper = "drawer_0", [0.0, 0.0, 0.0], [1, 0, 0], 0.3
-        geom = [
-            _box([0.02, W - 0.05, H - 0.05], [D / 2 - 0.01, 0, H / 2]),
-            _box([D - 0.06, W - 0.08, 0.01], [0.0, 0, 0.06]),
-            _box([0.02, 0.12, 0.015], [D / 2 + 0.04, 0, H * 0.75]),
-            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, -0.055, H * 0.75]),
-            _box([0.04, 0.015, 0.015], [D / 2 + 0.02, 0.055, H * 0.75]),
-        ]
-        handle_link, handle_axis = [D / 2 + 0.04, 0.0, H * 0.75], [0, 1, 0]
-    else:
-        name, origin, axis, upper = "door_0", [D / 2, W / 2, 0.0], [0, 0, 1], 1.57
-        geom = [
-            _box([0.02, W - 0.01, H - 0.01], [0.01, -W / 2, H / 2]),
-            _box([0.02, 0.015, 0.14], [0.06, -W + 0.06, H / 2]),
-            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 + 0.05]),
-            _box([0.04, 0.015, 0.015], [0.03, -W + 0.06, H / 2 - 0.05]),
-        ]
-        handle_link, handle_axis = [0.06, -W + 0.06, H / 2], [0, 0, 1]
-
-    def link(lname: str, semantic: str, mass: float, boxes: list) -> Link:
-        return Link(
-            name=lname,
-            semantic=semantic,
-            inertial=Inertial(mass, np.zeros(3), np.eye(3) * 0.05),
-            visuals=[Visual(f"visual/{lname}.glb", mesh=trimesh.util.concatenate(boxes))],
-            collisions=[
-                CollisionPiece(f"collision/{lname}_{k}.obj", mesh=b) for k, b in enumerate(boxes)
-            ],
-        )
-
-    pivot = np.eye(4)
-    pivot[:3, 3] = origin
-    asset = BuiltAsset(
-        id=aid,
-        links=[link("base", "base", 10.0, base), link(name, name[:-2], 2.0, geom)],
-        joints=[
-            Joint(
-                f"joint_{name}",
-                joint_type,
-                "base",
-                name,
-                origin=pivot,
-                axis=axis,
-                upper=upper,
-                physics=JointPhysics(damping=1.0, friction=0.02, effort=100.0, velocity=1.0),
-            )
-        ],
-        handles={name: Handle(handle_link, handle_axis, "bar")},
-        category=category,
-        bounds=np.array([[-D / 2, -W / 2, 0], [D / 2, W / 2, H]]),
-    )
-    save_asset(asset, folder)
-    return folder
 
 
 @pytest.fixture()
@@ -218,7 +131,6 @@ def test_joint_names_match_by_suffix() -> None:
 def test_handle_world_positions_rotates_by_the_link_quaternion() -> None:
     """Hand-computed: a link at (1, 0, 0.5) turned 90 degrees about +z carries the
     link-frame point (0.1, 0, 0.2) to (1, 0.1, 0.7); a second link unrotated."""
-    import numpy as np
     import torch
 
     from sim_envs.scene import handle_world_positions

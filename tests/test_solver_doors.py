@@ -51,7 +51,7 @@ def test_push_waypoints_go_round_the_free_edge(wide_fridge) -> None:
         push_waypoints_link,
     )
 
-    part = next(p for p in wide_fridge.parts if p.name == WIDE_FRIDGE[2])
+    part = next(p for p in wide_fridge.movable_parts() if p.name == WIDE_FRIDGE[2])
     a, r, n, radius = hinge_frame_link(part)
     assert radius > 0.6  # the case the push is for
     for tilt in PUSH_TILTS:
@@ -95,7 +95,7 @@ def test_candidate_bases_must_reach_the_closed_handle(wide_fridge) -> None:
         opening_normals,
     )
 
-    part = next(p for p in wide_fridge.parts if p.name == WIDE_FRIDGE[2])
+    part = next(p for p in wide_fridge.movable_parts() if p.name == WIDE_FRIDGE[2])
     path = handle_path(part, PATH_FRACTIONS)
     base, _, cost = _candidate_bases(part, wide_fridge.bounds, path, -opening_normals(part))
     shoulder = base + np.array([0.0, 0.0, SHOULDER_HEIGHT])

@@ -174,7 +174,7 @@ def test_resets_between_reconfigurations_resample_part_and_poses(
 
 def test_state_obs_carries_the_target_handle_kind(procedural_assets: Path) -> None:
     """``handle_kind`` in the state observation is the one-hot of the episode's part."""
-    from sim_envs.catalog import HANDLE_KINDS
+    from asset_pipeline.built_asset import HANDLE_KINDS
 
     env = _make("OpenDoor-v0", procedural_assets, obs_mode="state_dict")
     try:
@@ -194,7 +194,7 @@ def test_robot_placement_keeps_door_path_in_reach(procedural_assets: Path) -> No
 
     fridge = next(r for r in FolderSource(procedural_assets) if r.category == "refrigerator")
     lo, hi = np.asarray(fridge.bounds[0]), np.asarray(fridge.bounds[1])
-    for part in fridge.parts:
+    for part in fridge.movable_parts():
         base, _, start = robot_base_for_part(part, fridge.bounds)
         assert start is None  # no kinematics given: the ready pose
         # outside the fridge's footprint

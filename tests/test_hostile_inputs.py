@@ -1,0 +1,284 @@
+"""Probes of pact convert with hostile inputs: each ends as a clear error, a recorded
+failure, or correct handling, never as a traceback, a silent skip, a false ok or lost work."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shutil
+import signal
+from pathlib import Path
+
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from asset_pipeline import batch
+from asset_pipeline.batch import (
+    ConvertSettings,
+    OutputFolderError,
+    OutputLockedError,
+    _convert_in_worker,
+    run_convert,
+)
+from asset_pipeline.catalog import Catalog
+from asset_pipeline.inputs import discover_inputs
+from pact_cli.main import app
+from sim_envs import FolderSource
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
+FAST = ConvertSettings(generator="retrieval", validate=False, preview=False)
+runner = CliRunner()
+
+
+def _photos(dst: Path, names: list[str]) -> Path:
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in sorted(EXAMPLES.iterdir()):
+        if f.name.split(".")[0] in names:
+            shutil.copy(f, dst / f.name)
+    return dst
+
+
+def _rows(out: Path) -> dict[str, str]:
+    with Catalog(out, readonly=True) as cat:
+        return {r.id: r.status for r in cat.query()}
+
+
+def test_reserved_id_in_hints_fails_the_item_and_keeps_the_catalog(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001", "oven_t0000001"])
+    (images / "oven_t0000001.json").write_text(json.dumps({"id": "registry.sqlite"}))
+    out = tmp_path / "out"
+    summary = run_convert(images, out, FAST)
+    (failed,) = summary.failed
+    assert "oven_t0000001.json" in failed.reason and "reserved" in failed.reason
+    assert (out / "registry.sqlite").is_file()
+    assert _rows(out)["microwave_t0000001"] == "ok"
+    again = run_convert(images, out, FAST)  # a second run reads the catalog fine
+    assert again.skipped == ["microwave_t0000001"]
+
+
+def test_two_photos_with_one_id_both_fail_and_nothing_is_overwritten(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001", "oven_t0000001", "desk_t0000001"])
+    for name in ("microwave_t0000001", "oven_t0000001"):
+        (images / f"{name}.json").write_text(json.dumps({"id": "kitchen"}))
+    out = tmp_path / "out"
+    summary = run_convert(images, out, FAST)
+    failed = {r.name: r.reason for r in summary.failed}
+    assert set(failed) == {"microwave_t0000001", "oven_t0000001"}
+    assert all("'kitchen'" in why for why in failed.values())
+    assert not (out / "kitchen").exists() and _rows(out) == {"desk_t0000001": "ok"}
+
+
+def test_an_id_the_catalog_gives_to_another_photo_is_refused(tmp_path):
+    first = _photos(tmp_path / "a", ["microwave_t0000001"])
+    (first / "microwave_t0000001.json").write_text(json.dumps({"id": "kitchen"}))
+    out = tmp_path / "out"
+    assert [r.status for r in run_convert(first, out, FAST).results] == ["ok"]
+    before = (out / "kitchen" / "asset.json").read_bytes()
+    second = _photos(tmp_path / "b", ["oven_t0000001"])
+    (second / "oven_t0000001.json").write_text(json.dumps({"id": "kitchen"}))
+    (refused,) = run_convert(second, out, FAST).failed
+    assert "already belongs to" in refused.reason and "microwave_t0000001.png" in refused.reason
+    assert (out / "kitchen" / "asset.json").read_bytes() == before
+    assert _rows(out) == {"kitchen": "ok"}
+
+
+def test_a_second_run_on_the_same_out_stops_and_touches_nothing(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    (out / ".staging" / "busy").mkdir(parents=True)  # the first run's work in progress
+    with batch.output_lock(out):
+        with pytest.raises(OutputLockedError, match=f"{out}: another pact run"):
+            run_convert(images, out, FAST)
+    assert (out / ".staging" / "busy").is_dir()
+    assert not (out / "registry.sqlite").exists()
+
+
+def test_rerun_rebuilds_assets_whose_files_were_deleted(tmp_path):
+    names = ["microwave_t0000001", "oven_t0000001", "desk_t0000001"]
+    images = _photos(tmp_path / "in", names)
+    out = tmp_path / "out"
+    run_convert(images, out, FAST)
+    (out / "microwave_t0000001" / "model.urdf").unlink()
+    shutil.rmtree(out / "oven_t0000001" / "collision")
+    summary = run_convert(images, out, FAST)
+    assert sorted(r.id for r in summary.results) == ["microwave_t0000001", "oven_t0000001"]
+    assert summary.skipped == ["desk_t0000001"]
+    assert set(_rows(out).values()) == {"ok"}
+    assert (out / "microwave_t0000001" / "model.urdf").is_file()
+    assert list((out / "oven_t0000001" / "collision").glob("*.obj"))
+
+
+def test_a_damaged_asset_whose_photo_is_gone_is_marked_failed(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001", "oven_t0000001"])
+    out = tmp_path / "out"
+    run_convert(images, out, FAST)
+    (out / "oven_t0000001" / "model.urdf").unlink()
+    for f in images.glob("oven_t0000001*"):
+        f.unlink()
+    summary = run_convert(images, out, FAST)
+    assert any("oven_t0000001" in note and "model.urdf" in note for note in summary.reconciled)
+    assert _rows(out) == {"microwave_t0000001": "ok", "oven_t0000001": "failed"}
+    assert [a.id for a in FolderSource(out)] == ["microwave_t0000001"]
+
+
+def test_a_photo_that_became_unreadable_sets_its_old_asset_aside(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    run_convert(images, out, FAST)
+    (images / "microwave_t0000001.png").write_bytes(b"\x89PNG\r\n\x1a\nbroken")
+    (failed,) = run_convert(images, out, FAST).failed
+    assert "microwave_t0000001.png" in failed.reason and ".previous" in failed.reason
+    assert _rows(out) == {"microwave_t0000001": "failed"}
+    assert not (out / "microwave_t0000001").exists()
+    assert (out / ".previous" / "microwave_t0000001" / "model.urdf").is_file()  # not lost
+    assert len(FolderSource(out)) == 0
+
+
+def _convert_or_die(job: tuple, report) -> batch.ItemResult:
+    """A worker that is killed (SIGKILL) while it holds the oven."""
+    if job[0].name == "oven_t0000001":
+        report("generate")
+        os.kill(os.getpid(), signal.SIGKILL)
+    return _convert_in_worker(job, report)
+
+
+def test_a_crashed_worker_fails_only_its_own_item_and_names_it(tmp_path):
+    names = ["microwave_t0000001", "oven_t0000001", "desk_t0000001", "dishwasher_t0000001"]
+    images = _photos(tmp_path / "in", names)
+    out = tmp_path / "out"
+    out.mkdir()
+    todo = list(discover_inputs(images))
+    results = {
+        r.name: r for r in batch._local_results(todo, out, FAST, 2, None, work=_convert_or_die)
+    }
+    assert set(results) == set(names)
+    oven = results.pop("oven_t0000001")
+    assert oven.status == "failed" and oven.reason.startswith("oven_t0000001:")
+    assert "SIGKILL" in oven.reason and "generate" in oven.reason
+    assert {r.status for r in results.values()} == {"ok"}
+
+
+def test_photos_that_cannot_hold_an_object_fail_at_load_by_name(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    Image.new("RGB", (1, 1), (200, 10, 10)).save(images / "dot.png")
+    Image.new("RGBA", (64, 64), (200, 10, 10, 0)).save(images / "invisible.png")
+    shutil.copy(images / "microwave_t0000001.png", images / "nomask.png")
+    Image.new("L", (256, 256), 0).save(images / "nomask.mask.png")
+    summary = run_convert(images, tmp_path / "out", FAST)
+    failed = {r.name: r.reason for r in summary.failed}
+    assert set(failed) == {"dot", "invisible", "nomask"}
+    assert "dot.png" in failed["dot"] and "1x1" in failed["dot"]
+    assert "invisible.png" in failed["invisible"] and "silhouette" in failed["invisible"]
+    assert "nomask.mask.png" in failed["nomask"] and "empty" in failed["nomask"]
+    assert all(r.stage == "load" for r in summary.failed)
+
+
+def test_another_photos_mask_is_refused(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    shutil.copy(EXAMPLES / "cabinet_t0000002.mask.png", images / "microwave_t0000001.mask.png")
+    (failed,) = run_convert(images, tmp_path / "out", FAST).failed
+    assert "microwave_t0000001.mask.png" in failed.reason and "another photo" in failed.reason
+
+
+def test_webp_photos_convert_and_skipped_files_are_listed(tmp_path):
+    images = tmp_path / "in"
+    images.mkdir()
+    rgb = Image.open(EXAMPLES / "microwave_t0000001.png").convert("RGB")
+    rgb.save(images / "microwave.webp", lossless=True)
+    (images / "notes.txt").write_text("shopping list")
+    os.symlink("loop_b.png", images / "loop_a.png")
+    os.symlink("loop_a.png", images / "loop_b.png")
+    summary = run_convert(images, tmp_path / "out", FAST)
+    assert [(r.id, r.status) for r in summary.results] == [("microwave", "ok")]
+    ignored = {f.path.name: f.reason for f in summary.ignored}
+    assert set(ignored) == {"notes.txt", "loop_a.png", "loop_b.png"}
+    assert "loop" in ignored["loop_a.png"]
+
+
+def test_output_and_input_folders_are_checked_before_anything_is_made(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    not_a_folder = tmp_path / "out.txt"
+    not_a_folder.write_text("x")
+    with pytest.raises(OutputFolderError, match="out.txt: exists and is not a folder"):
+        run_convert(images, not_a_folder, FAST)
+    res = runner.invoke(app, ["convert", str(tmp_path / "nope"), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "nope" in res.output and "Traceback" not in res.output
+    assert not (tmp_path / "o").exists()
+    res = runner.invoke(app, ["convert", str(images), "--out", str(not_a_folder)])
+    assert res.exit_code == 2 and "error:" in res.output
+    res = runner.invoke(
+        app,
+        ["convert", str(images), "--out", str(tmp_path / "o2"), "--log-json", "/nope/log.jsonl"],
+    )
+    assert res.exit_code == 2 and "/nope/log.jsonl" in res.output
+
+
+def test_a_damaged_catalog_is_one_error_line(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "registry.sqlite").write_bytes(b"SQLite format 3\x00" + os.urandom(4000))
+    for args in (
+        ["convert", str(images), "--out", str(out)],
+        ["gallery", str(out)],
+        ["ls", str(out)],
+    ):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 2, (args, res.output)
+        assert "error:" in res.output and "registry.sqlite" in res.output
+        assert isinstance(res.exception, SystemExit)  # an exit code, not a traceback
+
+
+def test_generated_files_are_readable_by_others(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    old = os.umask(0o022)
+    try:
+        run_convert(images, out, FAST)
+    finally:
+        os.umask(old)
+    for name in ("model.urdf", "model.xml", "asset.json", "object.json"):
+        assert (out / "microwave_t0000001" / name).stat().st_mode & 0o777 == 0o644
+
+
+def test_train_gen_passes_its_options_and_guards_the_shipped_weights(tmp_path, monkeypatch):
+    import generator.pact.train_stage2 as stage2
+
+    seen = []
+    monkeypatch.setattr(stage2, "main", lambda argv: seen.append(argv))
+    res = runner.invoke(
+        app,
+        ["train-gen", "--stage", "2", "--what", "vae", "--data", "D", "--out", str(tmp_path),
+         "--config", "full", "--no-resume", "--minutes", "3", "--threads", "1"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    (argv,) = seen
+    assert argv[:3] == ["vae", "--data", "D"]
+    assert argv[argv.index("--out") + 1] == str(tmp_path)
+    assert "--config" in argv and "stage2_full" in argv and "--resume" not in argv
+    assert ["--minutes", "3.0"] == argv[argv.index("--minutes") : argv.index("--minutes") + 2]
+    monkeypatch.undo()
+    shipped = Path(stage2.__file__).parent / "weights" / "small"
+    before = sorted((p, p.stat().st_mtime) for p in shipped.rglob("*"))
+    with pytest.raises(SystemExit, match="shipped weights"):
+        stage2.main(["vae", "--data", "D", "--out", str(shipped / "slat_vae")])
+    res = runner.invoke(app, ["train-gen", "--stage", "1", "--data", "D", "--out", str(shipped)])
+    assert res.exit_code == 2 and "shipped weights" in res.output
+    assert sorted((p, p.stat().st_mtime) for p in shipped.rglob("*")) == before
+
+
+def test_the_flock_is_released_when_a_run_dies(tmp_path):
+    """The lock is an flock: the kernel drops it with the process, so a killed run never
+    leaves a stale lock behind."""
+    out = tmp_path / "out"
+    out.mkdir()
+    pid = os.fork()
+    if pid == 0:  # child: take the lock and die without cleaning up
+        fd = os.open(out / ".lock", os.O_RDWR | os.O_CREAT)
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        os._exit(0)
+    os.waitpid(pid, 0)
+    with batch.output_lock(out):
+        assert (out / ".lock").read_text() == str(os.getpid())
