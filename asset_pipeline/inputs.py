@@ -516,7 +516,26 @@ def read_image(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
             alpha = None
         else:
             _check_alpha(alpha, path)
+    if alpha is None:
+        _check_not_plain(rgb, path)
     return rgb.astype(np.uint8, copy=False), alpha
+
+
+#: A photo whose colours (1st to 99th percentile, every channel) span less than this
+#: is one plain colour: there is no object in it.
+PLAIN_PHOTO_SPREAD = 8
+
+
+def _check_not_plain(rgb: np.ndarray, path: Path) -> None:
+    """Refuse an (H, W, 3) photo that is one plain colour (nothing to convert)."""
+    stride = max(1, -(-max(rgb.shape[:2]) // SILHOUETTE_GRID))
+    grid = rgb[::stride, ::stride].reshape(-1, 3)
+    lo, hi = np.percentile(grid, [1, 99], axis=0)
+    if float((hi - lo).max()) < PLAIN_PHOTO_SPREAD:
+        raise InputError(
+            f"{path}: the photo is one plain colour (RGB {np.median(grid, axis=0).astype(int).tolist()}"
+            "); there is no object to convert"
+        )
 
 
 def _check_alpha(alpha: np.ndarray, path: Path) -> None:

@@ -9,8 +9,11 @@ stays fast.
 
 from __future__ import annotations
 
+import functools
 import logging
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -29,8 +32,52 @@ app = typer.Typer(
 console = Console(stderr=True, soft_wrap=True)
 
 
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The typed errors whose message names the file and says what to do: shown as one
+    ``error:`` line, never as a traceback."""
+    from asset_pipeline.asset_io import AssetFormatError
+    from asset_pipeline.batch import OutputFolderError, OutputLockedError
+    from asset_pipeline.build import BuildError
+    from asset_pipeline.catalog import CatalogError
+    from asset_pipeline.importers import ImportFormatError
+    from asset_pipeline.inputs import InputError
+    from asset_pipeline.validate import ReportFormatError
+    from generator.articulated import ObjectModelError
+    from generator.data import DatasetError
+    from sim_envs.asset_sources import AssetSourceError
+
+    return (
+        AssetFormatError, OutputFolderError, OutputLockedError, BuildError, CatalogError,
+        ImportFormatError, InputError, ReportFormatError, ObjectModelError, DatasetError,
+        AssetSourceError, FileNotFoundError, FileExistsError, NotADirectoryError,
+        IsADirectoryError, PermissionError,
+    )  # fmt: skip
+
+
+def reports_errors(command: Callable) -> Callable:
+    """Run a command; a user error (:func:`_user_errors`) becomes ``error: ...``, exit 2."""
+
+    @functools.wraps(command)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return command(*args, **kwargs)
+        except typer.Exit:
+            raise
+        except Exception as e:
+            if isinstance(e, _user_errors()):
+                raise fail(e) from e
+            raise
+
+    return run
+
+
 def fail(message: object, code: int = 2) -> typer.Exit:
-    """Print ``error: MESSAGE`` (never read as markup) and return the exit to raise."""
+    """Print ``error: MESSAGE`` (never read as markup) and return the exit to raise.
+
+    An OSError reads ``PATH: what the system says``.
+    """
+    if isinstance(message, OSError) and message.filename is not None:
+        message = f"{message.filename}: {message.strerror or message}"
     console.print(f"[red]error:[/red] {escape(str(message))}")
     return typer.Exit(code)
 
@@ -49,6 +96,7 @@ def _root(verbose: bool = typer.Option(False, "--verbose", "-v", help="Debug log
 
 
 @app.command()
+@reports_errors
 def sample(
     category: str = typer.Option(
         ..., "--category", "-c", help=f"One of: {', '.join(CATEGORIES)}, or 'all'."
@@ -77,6 +125,7 @@ def sample(
 
 
 @app.command("eval-gen")
+@reports_errors
 def eval_gen(
     pred: Path = typer.Option(
         ..., "--pred", help="Folder of predicted bundles (<id>/object.json)."
@@ -122,6 +171,7 @@ def _build_one(bundle: Path, height: float | None, validate: bool, repair: bool)
 
 
 @app.command()
+@reports_errors
 def build(
     paths: list[Path] = typer.Argument(..., help="Bundle folders, or folders of bundles."),
     height: float = typer.Option(None, help="Metric height (m) for bundles without a scale."),
@@ -166,6 +216,7 @@ def build(
 
 
 @app.command("validate")
+@reports_errors
 def validate_cmd(
     paths: list[Path] = typer.Argument(..., help="Built asset folders, or folders of them."),
     repair: bool = typer.Option(True, "--repair/--no-repair", help="Repair what can be repaired."),
@@ -214,6 +265,7 @@ def validate_cmd(
 
 
 @app.command("ls")
+@reports_errors
 def ls(
     out: Path = typer.Argument(..., help="Output folder with registry.sqlite (or the file)."),
     status: str = typer.Option(None, help="ok, repaired or failed."),
@@ -232,6 +284,7 @@ def ls(
 
 
 @app.command("import")
+@reports_errors
 def import_(
     path: Path = typer.Argument(
         ..., help="A PAct or SINGAPO output (object.json) or a folder of them."
@@ -255,6 +308,7 @@ def import_(
 
 
 @app.command()
+@reports_errors
 def gallery(
     out: Path = typer.Argument(..., help="Output folder of a convert or build run."),
 ) -> None:
@@ -269,6 +323,7 @@ def gallery(
 
 
 @app.command()
+@reports_errors
 def convert(
     images: Path = typer.Argument(..., help="Folder of images (+ .mask.png, + .json hints)."),
     out: Path = typer.Option(
@@ -403,6 +458,7 @@ def convert(
 
 
 @app.command("check-tasks")
+@reports_errors
 def check_tasks_cmd(
     path: Path = typer.Argument(..., help="Folder of built assets, one asset or a catalog file."),
     category: str = typer.Option(None, help="Category filter."),
@@ -451,6 +507,7 @@ def check_tasks_cmd(
 
 
 @app.command()
+@reports_errors
 def train(
     task: str = typer.Option("OpenDrawer-v0", "--task", help="Registered task id."),
     assets: str = typer.Option(..., "--assets", help="Folder of built assets or catalog file."),
@@ -490,6 +547,7 @@ def train(
 
 
 @app.command("eval-policy")
+@reports_errors
 def eval_policy(
     policy: Path = typer.Argument(..., help="policy.zip written by pact train."),
     task: str = typer.Option("OpenDrawer-v0", "--task"),
@@ -502,11 +560,14 @@ def eval_policy(
 
     from tasks.train import evaluate
 
+    if not policy.is_file():
+        raise fail(f"{policy}: no such policy file (pact train writes OUT/policy.zip)")
     result = evaluate(str(policy), task, assets, episodes=episodes, video_dir=video_dir)
     print(json.dumps(result, indent=2, default=str))
 
 
 @app.command("train-gen")
+@reports_errors
 def train_gen(
     stage: int = typer.Option(1, "--stage", min=1, max=2, help="PAct stage to train (1 or 2)."),
     data: Path = typer.Option(..., "--data", help="Dataset folder (pact dataset build)."),
@@ -588,6 +649,7 @@ app.add_typer(dataset_app, name="dataset")
 
 
 @dataset_app.command("build")
+@reports_errors
 def dataset_build(
     n: int = typer.Option(
         ..., "--n", min=1, help="Number of objects (cycling through categories)."

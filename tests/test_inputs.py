@@ -37,9 +37,11 @@ OBJ = (slice(8, 40), slice(16, 48))
 
 
 def _rgba(path: Path, w: int = 64, h: int = 48, opaque: bool = False) -> None:
-    """An RGBA photo whose alpha silhouette is the OBJ box."""
+    """An RGBA photo whose alpha silhouette is the OBJ box, a darker door inside it."""
     a = np.zeros((h, w, 4), np.uint8)
     a[..., :3] = 120
+    a[(*OBJ, slice(0, 3))] = 180
+    a[12:36, 20:44, :3] = 90
     a[(*OBJ, 3)] = 255
     if opaque:
         a[..., 3] = 255
@@ -92,7 +94,9 @@ def test_discover_and_load(tmp_path: Path) -> None:
     (tmp_path / "b.json").write_text(
         json.dumps({"category": "cabinet", "height": 0.9, "id": "cab-b"})
     )
-    Image.new("RGB", (40, 36), (10, 20, 30)).save(tmp_path / "a.jpg")
+    jpg = Image.new("RGB", (40, 36), (10, 20, 30))
+    jpg.paste((200, 180, 160), (8, 6, 30, 28))  # an object on a dark background
+    jpg.save(tmp_path / "a.jpg")
     _mask(tmp_path / "orphan.mask.png", _good_mask())
     listing = discover_inputs(tmp_path)
     assert isinstance(listing, InputListing)
@@ -226,8 +230,17 @@ def test_tiny_photo_refused(tmp_path: Path, size: tuple[int, int]) -> None:
     assert f"photo is {w}x{h} px; at least 32x32 px are needed to see an object" in str(err)
 
 
+def test_plain_photo_refused(tmp_path: Path) -> None:
+    """A photo of one colour holds no object (an all-grey or all-white picture)."""
+    Image.new("RGB", (128, 96), (200, 200, 200)).save(tmp_path / "grey.png")
+    with pytest.raises(InputError, match=r"grey.png: the photo is one plain colour"):
+        load_input(discover_inputs(tmp_path)[0])
+
+
 def test_smallest_photo_accepted(tmp_path: Path) -> None:
-    Image.new("RGB", (MIN_PHOTO_SIZE, MIN_PHOTO_SIZE)).save(tmp_path / "t.png")
+    img = Image.new("RGB", (MIN_PHOTO_SIZE, MIN_PHOTO_SIZE))
+    img.paste((200, 180, 160), (8, 8, 24, 24))
+    img.save(tmp_path / "t.png")
     assert load_input(discover_inputs(tmp_path)[0]).image.shape == (32, 32, 3)
 
 
