@@ -37,8 +37,12 @@ from .mesh import (
     watertight_object,
 )
 from .rig import PhysicsDefaults, build_rig
+from .voxel_collision import VoxelCollisionParams, articulated_boxes, box_primitive
 
 log = logging.getLogger(__name__)
+
+
+COLLISION_METHODS = ("auto", "voxel", "coacd")
 
 
 class BuildError(ValueError):
@@ -56,6 +60,17 @@ class BuildOptions:
     #: CoACD cache folder; None: ``$PACT_CACHE_DIR`` or ``~/.cache/pact/coacd``.
     cache_dir: Path | None = None
     remesh_resolution: int = REMESH_RESOLUTION
+    #: How parts collide: "auto" (a part's primitives where it has them, else
+    #: articulation-aware voxel boxes), "voxel" (voxel boxes from every part's mesh,
+    #: primitives ignored) or "coacd" (each part's mesh decomposed alone by CoACD).
+    collision: str = "auto"
+    voxel: VoxelCollisionParams = VoxelCollisionParams()
+
+    def __post_init__(self) -> None:
+        if self.collision not in COLLISION_METHODS:
+            raise ValueError(
+                f"collision must be one of {COLLISION_METHODS}, got {self.collision!r}"
+            )
 
 
 @dataclass
@@ -82,6 +97,34 @@ class BuildResult:
     @property
     def mjcf(self) -> Path:
         return self.directory / MJCF_NAME
+
+
+def collide_boxes(obj: ArticulatedObject, options: BuildOptions = BuildOptions()) -> None:
+    """Give the parts that need them articulation-aware collision boxes as primitives.
+
+    "auto": the parts without primitives (when there are any); "voxel": every part, from
+    its mesh. The boxes (:mod:`asset_pipeline.voxel_collision`) are decomposed for the
+    whole object at once, so the base's never enter a drawer's slot or a door's swing;
+    they become the part's primitives, its collision pieces and its mass solid.
+    """
+    if options.collision == "coacd":
+        return
+    todo = [p for p in obj.parts if options.collision == "voxel" or not p.primitives]
+    if not todo:
+        return
+    cache = None if options.cache_dir is None else Path(options.cache_dir) / "voxel"
+    boxes, pitch, cached = articulated_boxes(obj, options.voxel, cache)
+    for p in todo:
+        if not boxes[p.name]:
+            raise BuildError(f"part {p.name}: no collision box survived (is it all inside a sweep?)")
+        p.primitives = [box_primitive(b) for b in boxes[p.name]]
+    log.info(
+        "%d part(s): %d voxel boxes at pitch %.1f mm%s",
+        len(todo),
+        sum(len(p.primitives) for p in todo),
+        pitch * 1000,
+        " (cached)" if cached else "",
+    )
 
 
 def prepare_object(
@@ -118,6 +161,7 @@ def build_asset(
     except MeshRepairError as e:
         raise BuildError(f"{root / 'parts'}: {e}") from e
 
+    collide_boxes(built, options)
     pieces: dict[str, list[trimesh.Trimesh]] = {}
     for p in built.parts:
         try:

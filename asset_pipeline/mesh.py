@@ -308,17 +308,31 @@ def to_metric(
     return out
 
 
+def has_texture_image(mesh: trimesh.Trimesh) -> bool:
+    """True when ``mesh`` is textured with an image (an artist's or a baked texture)."""
+    material = getattr(mesh.visual, "material", None)
+    image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+    return mesh.visual.kind == "texture" and image is not None
+
+
 def watertight_object(
     obj: ArticulatedObject, resolution: int = REMESH_RESOLUTION
 ) -> ArticulatedObject:
     """Copy of ``obj`` with every part mesh replaced by :func:`watertight` of it.
 
-    Raises MeshRepairError naming the part when one cannot be closed.
+    A part whose mesh carries a texture image and is not a closed volume (an artist's
+    mesh: open shells, loose pieces) keeps its mesh as it is: remeshing would lose the
+    texture. Such a part needs primitives or articulation-aware collision boxes
+    (:mod:`asset_pipeline.voxel_collision`) for its physics. Raises MeshRepairError
+    naming the part when one cannot be closed.
     """
     parts = []
     for p in obj.parts:
         try:
-            m = watertight(p.mesh, resolution)
+            if has_texture_image(p.mesh) and not is_closed_volume(p.mesh):
+                m = p.mesh.copy()
+            else:
+                m = watertight(p.mesh, resolution)
         except MeshRepairError as e:
             raise MeshRepairError(f"part {p.name!r}: {e}") from e
         parts.append(

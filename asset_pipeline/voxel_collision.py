@@ -1,0 +1,518 @@
+"""Articulation-aware collision pieces: boxes cut from voxels, clear of every part's sweep.
+
+Artist-made meshes (PartNet-Mobility, CAD exports, other generators' outputs) are open
+shells with internal faces and dozens of loose pieces. Decomposing each part alone
+(CoACD) gives hulls that fill the cavities the drawers and doors sit in. Here the
+whole object is decomposed together, in one voxel grid of the object frame:
+
+1. Occupancy. Each part's surface is sampled densely (deterministic barycentric
+   lattices, spacing at most half a voxel) and splatted into the grid; cavities the
+   part's own voxels enclose are filled (a closed door is solid, an open carcass stays
+   open: background connects through voxel faces only).
+2. Sweeps. Each movable part's occupancy (surface samples and filled voxel centres)
+   is moved through its joint range in steps of at most half a voxel at its farthest
+   point and splatted again: the space the part occupies at some joint value.
+3. Carving. The base loses every voxel within ``clearance`` voxels of any movable
+   part's sweep (drawer slots, door swings, the parts' own rest volumes stay free);
+   two movable parts whose rest volumes touch give the overlap to the larger one.
+4. Boxes. Each part's remaining voxels are run-length merged into boxes (x runs, then
+   y, then z), neighbouring boxes are merged greedily while the merged box stays
+   filled to ``1 - merge_slack`` and off every carved voxel (summed-volume tables
+   make each test O(1)), at most ``max_pieces`` per part; finally each box is
+   tightened to the samples and filled voxels it holds, so an axis-aligned panel's
+   piece is the panel itself, not its voxels.
+
+The pieces are boxes in the object frame (8 vertices each), never inside a voxel
+another part sweeps through; they cover the part's surface samples (a sample can only
+be lost where it lies in another part's swept space). Everything is numpy: no
+external process, deterministic for the same meshes, joints and parameters; results
+are cached on disk by a hash of those. Units: metres.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy import ndimage
+
+from generator.articulated import ArticulatedObject, Part, Primitive, atomic_write_bytes
+
+log = logging.getLogger(__name__)
+
+CACHE_VERSION = 1
+#: Past the time-out the pitch doubles; at this multiple it runs to the end whatever
+#: it takes (a coarse but valid, sweep-free decomposition).
+FALLBACK_SCALE = 8.0
+
+
+@dataclass(frozen=True)
+class VoxelCollisionParams:
+    """How fine and how many: all part of the cache key."""
+
+    #: Voxels along the object's largest rest extent (the pitch is clamped below).
+    resolution: int = 192
+    min_pitch: float = 0.003
+    max_pitch: float = 0.008
+    #: Voxels kept free around every sweep (the gap between base and part collision).
+    clearance: int = 1
+    #: A merge may add at most this fraction of empty volume to the merged box.
+    merge_slack: float = 0.12
+    #: Pieces per part at most (merging relaxes its slack up to 0.5 to get there).
+    max_pieces: int = 48
+    #: Thinnest piece (m) after tightening.
+    min_thickness: float = 0.002
+    #: Seconds for the whole object; past it the pitch doubles and the work restarts.
+    timeout: float = 120.0
+
+
+DEFAULT_PARAMS = VoxelCollisionParams()
+
+
+@dataclass
+class VoxelCollisionResult:
+    """Pieces per part (object frame) and what it took."""
+
+    pieces: dict[str, list[trimesh.Trimesh]]
+    pitch: float
+    seconds: float
+    carved_voxels: dict[str, int] = field(default_factory=dict)
+    cached: bool = False
+
+
+# --------------------------------------------------------------------------- sampling
+
+
+def surface_points(mesh: trimesh.Trimesh, spacing: float) -> np.ndarray:
+    """(N, 3) points on ``mesh``'s triangles no farther than ``spacing`` apart.
+
+    Each triangle gets the barycentric lattice of order n = ceil(longest edge /
+    spacing): points (i / n, j / n) for i + j <= n, vertices and edges included.
+    Deterministic (no random sampling).
+    """
+    tri = np.asarray(mesh.triangles, dtype=np.float64)
+    if len(tri) == 0:
+        return np.zeros((0, 3))
+    edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1)
+    order = np.maximum(1, np.ceil(edges / spacing)).astype(np.int64)
+    out = [tri.reshape(-1, 3)]
+    for n in np.unique(order):
+        if n < 2:
+            continue
+        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+        keep = (i + j) <= n
+        w1, w2 = i[keep] / n, j[keep] / n
+        w = np.stack([1.0 - w1 - w2, w1, w2], axis=1)  # (K, 3)
+        sel = tri[order == n]  # (T, 3, 3)
+        out.append(np.einsum("kv,tvc->tkc", w, sel).reshape(-1, 3))
+    return np.concatenate(out)
+
+
+# --------------------------------------------------------------------------- the grid
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A voxel grid of the object frame: ``origin`` (3,) of cell (0, 0, 0)'s low corner,
+    ``pitch`` (m), ``shape`` (3,) cells."""
+
+    origin: np.ndarray
+    pitch: float
+    shape: tuple[int, int, int]
+
+    def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) int cell indices of ``points`` and a (N,) mask of those inside the grid."""
+        idx = np.floor((points - self.origin) / self.pitch).astype(np.int64)
+        inside = np.all((idx >= 0) & (idx < np.array(self.shape)), axis=1)
+        return idx, inside
+
+    def splat(self, points: np.ndarray, into: np.ndarray | None = None) -> np.ndarray:
+        occ = np.zeros(self.shape, bool) if into is None else into
+        idx, inside = self.index(points)
+        idx = idx[inside]
+        occ[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+        return occ
+
+    def centres(self, occ: np.ndarray) -> np.ndarray:
+        return (np.argwhere(occ) + 0.5) * self.pitch + self.origin
+
+
+def make_grid(obj: ArticulatedObject, params: VoxelCollisionParams, scale: float = 1.0) -> Grid:
+    lo, hi = obj.bounds()
+    pitch = float(np.clip(np.max(hi - lo) / params.resolution, params.min_pitch, params.max_pitch))
+    pitch *= scale
+    margin = (params.clearance + 2) * pitch
+    origin = lo - margin
+    shape = tuple(int(n) for n in np.ceil((hi + margin - origin) / pitch))
+    return Grid(origin=origin, pitch=pitch, shape=shape)  # type: ignore[arg-type]
+
+
+def fill_enclosed(occ: np.ndarray) -> np.ndarray:
+    """``occ`` with every cavity it encloses filled (background through faces only)."""
+    return ndimage.binary_fill_holes(occ)
+
+
+# --------------------------------------------------------------------------- sweeps
+
+
+def _joint_steps(part: Part, points: np.ndarray, pitch: float) -> np.ndarray:
+    """Joint values from lower to upper so that no point moves more than a pitch a step."""
+    j = part.joint
+    assert j is not None
+    if j.type == "prismatic":
+        reach = abs(j.upper - j.lower)
+    else:
+        r = np.linalg.norm(np.cross(points - j.origin, j.axis), axis=1).max(initial=0.0)
+        reach = abs(j.upper - j.lower) * float(r)
+    n = max(1, math.ceil(reach / pitch))
+    return np.linspace(j.lower, j.upper, n + 1)
+
+
+def swept_occupancy(part: Part, occ: np.ndarray, grid: Grid) -> np.ndarray:
+    """Cells the part, whose rest occupancy is ``occ``, passes through over its range.
+
+    A cell inside the part at some joint value is inside it at rest, or on its surface
+    at some joint value: so the rest occupancy and the moved centres of its boundary
+    cells (steps of at most a pitch; the caller's dilation by at least one cell closes
+    the gaps between steps) cover the sweep.
+    """
+    boundary = occ & ~ndimage.binary_erosion(occ)
+    points = grid.centres(boundary)
+    swept = occ.copy()
+    for q in _joint_steps(part, points, grid.pitch):
+        T = part.joint.transform(float(q))  # type: ignore[union-attr]
+        grid.splat(points @ T[:3, :3].T + T[:3, 3], into=swept)
+    return swept
+
+
+# --------------------------------------------------------------------------- boxes
+
+
+def _runs(occ: np.ndarray) -> list[tuple[int, int, int, int, int, int]]:
+    """Boxes [x0, x1) x [y0, y1) x [z0, z1) (cell indices) covering ``occ`` exactly:
+    runs along x merged across y, then across z."""
+    nx, ny, nz = occ.shape
+    pad = np.zeros((nx + 2, ny, nz), bool)
+    pad[1:-1] = occ
+    d = np.diff(pad.astype(np.int8), axis=0)  # (nx + 1, ny, nz)
+    starts = np.argwhere(d == 1)  # (x0, y, z)
+    ends = np.argwhere(d == -1)  # (x1, y, z)
+    order_s = np.lexsort((starts[:, 0], starts[:, 1], starts[:, 2]))
+    order_e = np.lexsort((ends[:, 0], ends[:, 1], ends[:, 2]))
+    starts, ends = starts[order_s], ends[order_e]
+    # rectangles in (x, y) per z: extend a run to y + 1 when the same run exists there
+    rects: list[list[int]] = []  # x0, x1, y0, y1, z
+    open_: dict[tuple[int, int, int], int] = {}
+    for (x0, y, z), (x1, _, _) in zip(starts.tolist(), ends.tolist(), strict=True):
+        key = (z, x0, x1)
+        k = open_.get(key)
+        if k is not None and rects[k][3] == y:
+            rects[k][3] = y + 1
+        else:
+            open_[key] = len(rects)
+            rects.append([x0, x1, y, y + 1, z])
+    # boxes: extend a rectangle to z + 1 when the same rectangle exists there
+    rects.sort(key=lambda r: (r[4], r[0], r[2]))
+    boxes: list[list[int]] = []
+    open3: dict[tuple[int, int, int, int], int] = {}
+    for x0, x1, y0, y1, z in rects:
+        key = (x0, x1, y0, y1)
+        k = open3.get(key)
+        if k is not None and boxes[k][5] == z:
+            boxes[k][5] = z + 1
+        else:
+            open3[key] = len(boxes)
+            boxes.append([x0, x1, y0, y1, z, z + 1])
+    return [tuple(b) for b in boxes]  # type: ignore[misc]
+
+
+class _Volume:
+    """Summed-volume table of a bool grid: the count of True cells in any box, in O(1)."""
+
+    def __init__(self, occ: np.ndarray) -> None:
+        s = np.zeros(tuple(n + 1 for n in occ.shape), np.int64)
+        s[1:, 1:, 1:] = occ.astype(np.int64).cumsum(0).cumsum(1).cumsum(2)
+        self.s = s
+
+    def count(self, b: np.ndarray) -> np.ndarray:
+        """True cells in boxes ``b`` (M, 6) = [x0, x1, y0, y1, z0, z1]."""
+        s = self.s
+        x0, x1, y0, y1, z0, z1 = (b[:, i] for i in range(6))
+        return (
+            s[x1, y1, z1] - s[x0, y1, z1] - s[x1, y0, z1] - s[x1, y1, z0]
+            + s[x0, y0, z1] + s[x0, y1, z0] + s[x1, y0, z0] - s[x0, y0, z0]
+        )  # fmt: skip
+
+
+def merge_boxes(
+    boxes: np.ndarray,
+    filled: _Volume,
+    blocked: _Volume,
+    slack: float,
+    max_boxes: int,
+) -> np.ndarray:
+    """Merge neighbouring boxes (M, 6) greedily; see the module docstring.
+
+    A merge replaces two boxes by their bounding box when it holds no blocked cell and
+    its filled cells are at least ``1 - slack`` of its volume (relaxed step by step up
+    to 0.5 while more than ``max_boxes`` remain). Smallest boxes merge first.
+    """
+    arr = np.array(boxes, dtype=np.int64).reshape(-1, 6)
+    alive = np.ones(len(arr), bool)
+    limit = slack
+    while True:
+        merged_any = False
+        vol = np.prod(arr[:, 1::2] - arr[:, 0::2], axis=1)
+        for i in np.argsort(vol, kind="stable"):
+            if not alive[i]:
+                continue
+            b = arr[i]
+            touch = alive & np.all((arr[:, 0::2] <= b[1::2]) & (arr[:, 1::2] >= b[0::2]), axis=1)
+            touch[i] = False
+            cand = np.nonzero(touch)[0]
+            if len(cand) == 0:
+                continue
+            u = np.empty((len(cand), 6), np.int64)
+            u[:, 0::2] = np.minimum(arr[cand, 0::2], b[0::2])
+            u[:, 1::2] = np.maximum(arr[cand, 1::2], b[1::2])
+            uvol = np.prod(u[:, 1::2] - u[:, 0::2], axis=1)
+            ok = (filled.count(u) >= (1.0 - limit) * uvol) & (blocked.count(u) == 0)
+            if not ok.any():
+                continue
+            k = int(np.argmin(np.where(ok, uvol, np.iinfo(np.int64).max)))
+            arr[i] = u[k]
+            alive[cand[k]] = False
+            arr[cand[k]] = 0
+            merged_any = True
+        arr, alive = arr[alive], alive[alive]
+        if len(arr) <= max_boxes and not merged_any:
+            break
+        if not merged_any:
+            if limit >= 0.5:
+                break
+            limit = min(0.5, limit + 0.1)
+    return arr
+
+
+class CellBounds:
+    """Per cell of a grid, the bounds (3,) of the points that fall in it (+inf / -inf
+    where none do): boxes of cells are tightened to their points by a reduction."""
+
+    def __init__(self, grid: Grid, points: np.ndarray) -> None:
+        idx, inside = grid.index(points)
+        idx, points = idx[inside], points[inside]
+        flat = np.ravel_multi_index(idx.T, grid.shape)
+        n = int(np.prod(grid.shape))
+        self.lo = np.full((n, 3), np.inf, np.float32)
+        self.hi = np.full((n, 3), -np.inf, np.float32)
+        for a in range(3):
+            np.minimum.at(self.lo[:, a], flat, points[:, a].astype(np.float32))
+            np.maximum.at(self.hi[:, a], flat, points[:, a].astype(np.float32))
+        self.lo = self.lo.reshape(*grid.shape, 3)
+        self.hi = self.hi.reshape(*grid.shape, 3)
+
+    def of(self, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the points in ``box`` [x0, x1, y0, y1, z0, z1] (inf when none)."""
+        sl = (slice(box[0], box[1]), slice(box[2], box[3]), slice(box[4], box[5]))
+        lo = self.lo[sl].reshape(-1, 3).min(axis=0)
+        hi = self.hi[sl].reshape(-1, 3).max(axis=0)
+        return lo.astype(np.float64), hi.astype(np.float64)
+
+
+def tighten(box: np.ndarray, grid: Grid, cells: CellBounds, min_thickness: float) -> np.ndarray:
+    """(2, 3) metric bounds of ``box`` (cell indices) shrunk to the points inside it
+    (surface samples and filled-cell corners), at least ``min_thickness`` thick."""
+    lo = grid.origin + box[0::2] * grid.pitch
+    hi = grid.origin + box[1::2] * grid.pitch
+    plo, phi = cells.of(box)
+    if np.isfinite(plo).all():
+        lo, hi = np.maximum(lo, plo), np.minimum(hi, phi)
+    short = (hi - lo) < min_thickness
+    mid = 0.5 * (lo + hi)
+    lo = np.where(short, mid - 0.5 * min_thickness, lo)
+    hi = np.where(short, mid + 0.5 * min_thickness, hi)
+    return np.stack([lo, hi])
+
+
+def box_mesh(bounds: np.ndarray) -> trimesh.Trimesh:
+    lo, hi = bounds
+    return trimesh.creation.box(
+        extents=hi - lo, transform=trimesh.transformations.translation_matrix(0.5 * (lo + hi))
+    )
+
+
+def box_primitive(bounds: np.ndarray) -> Primitive:
+    lo, hi = bounds
+    return Primitive("box", hi - lo, trimesh.transformations.translation_matrix(0.5 * (lo + hi)))
+
+
+# --------------------------------------------------------------------------- the object
+
+
+def _filled_points(occ_filled: np.ndarray, occ_surface: np.ndarray, grid: Grid) -> np.ndarray:
+    """Corners of the cells filled as enclosed interior (not reached by samples)."""
+    inner = occ_filled & ~occ_surface
+    if not inner.any():
+        return np.zeros((0, 3))
+    c = grid.centres(inner)
+    h = 0.5 * grid.pitch
+    return np.concatenate([c - h, c + h])
+
+
+def _decompose(
+    obj: ArticulatedObject, params: VoxelCollisionParams, grid: Grid, deadline: float
+) -> tuple[dict[str, list[np.ndarray]], dict[str, int]]:
+    spacing = 0.5 * grid.pitch
+    occ, pts = {}, {}
+    for p in obj.parts:
+        samples = surface_points(p.mesh, spacing)
+        surface = grid.splat(samples)
+        filled = fill_enclosed(surface)
+        occ[p.name] = filled
+        pts[p.name] = np.concatenate([samples, _filled_points(filled, surface, grid)])
+        _check(deadline)
+    movable = [p for p in obj.parts if p.joint is not None and p.joint.movable]
+    grow = ndimage.generate_binary_structure(3, 3)
+    swept: dict[str, np.ndarray] = {}
+    for p in movable:
+        s = swept_occupancy(p, occ[p.name], grid)
+        swept[p.name] = ndimage.binary_dilation(s, grow, iterations=max(1, params.clearance))
+        _check(deadline)
+    blocked: dict[str, np.ndarray] = {}
+    base = obj.base.name
+    blocked[base] = np.zeros(grid.shape, bool)
+    for s in swept.values():
+        blocked[base] |= s
+    for p in movable:
+        blocked[p.name] = np.zeros(grid.shape, bool)
+    # two movable parts whose rest volumes touch: the smaller one yields
+    rest = {p.name: ndimage.binary_dilation(occ[p.name], grow, iterations=params.clearance)
+            for p in movable}  # fmt: skip
+    for a in movable:
+        for b in movable:
+            if a.name >= b.name:
+                continue
+            both = occ[a.name] & rest[b.name] | occ[b.name] & rest[a.name]
+            if both.any():
+                small = a if occ[a.name].sum() <= occ[b.name].sum() else b
+                big = b if small is a else a
+                blocked[small.name] |= rest[big.name] & occ[small.name]
+    boxes: dict[str, list[np.ndarray]] = {}
+    carved: dict[str, int] = {}
+    for p in obj.parts:
+        keep = occ[p.name] & ~blocked[p.name]
+        carved[p.name] = int((occ[p.name] & blocked[p.name]).sum())
+        if not keep.any():
+            boxes[p.name] = []
+            continue
+        runs = np.array(_runs(keep), dtype=np.int64).reshape(-1, 6)
+        merged = merge_boxes(
+            runs, _Volume(keep), _Volume(blocked[p.name]), params.merge_slack, params.max_pieces
+        )
+        cells = CellBounds(grid, pts[p.name])
+        boxes[p.name] = [tighten(b, grid, cells, params.min_thickness) for b in merged]
+        _check(deadline)
+    return boxes, carved
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+def _check(deadline: float) -> None:
+    if time.perf_counter() > deadline:
+        raise _OutOfTime
+
+
+# --------------------------------------------------------------------------- cache
+
+
+def default_cache_dir() -> Path:
+    """``$PACT_CACHE_DIR/voxel`` if set, else ``~/.cache/pact/voxel``."""
+    env = os.environ.get("PACT_CACHE_DIR")
+    return (Path(env) if env else Path.home() / ".cache" / "pact") / "voxel"
+
+
+def cache_key(obj: ArticulatedObject, params: VoxelCollisionParams) -> str:
+    """Hex sha256 of every part's mesh arrays and joint, and the parameters."""
+    h = hashlib.sha256(f"voxel-collision-{CACHE_VERSION}".encode())
+    h.update(json.dumps(asdict(params), sort_keys=True).encode())
+    for p in obj.parts:
+        h.update(p.name.encode())
+        h.update(np.ascontiguousarray(p.mesh.vertices, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(p.mesh.faces, dtype=np.int64).tobytes())
+        h.update(json.dumps(None if p.joint is None else p.joint.to_json()).encode())
+    return h.hexdigest()
+
+
+def _save(path: Path, boxes: dict[str, list[np.ndarray]], pitch: float) -> None:
+    buf = io.BytesIO()
+    arrays = {f"part_{k}": np.array(v).reshape(-1, 2, 3) for k, v in enumerate(boxes.values())}
+    np.savez(buf, names=np.array(list(boxes)), pitch=pitch, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _load(path: Path) -> tuple[dict[str, list[np.ndarray]], float]:
+    with np.load(path) as z:
+        names = [str(n) for n in z["names"]]
+        return {n: list(z[f"part_{k}"]) for k, n in enumerate(names)}, float(z["pitch"])
+
+
+# --------------------------------------------------------------------------- entry
+
+
+def articulated_boxes(
+    obj: ArticulatedObject,
+    params: VoxelCollisionParams = DEFAULT_PARAMS,
+    cache_dir: Path | None = None,
+) -> tuple[dict[str, list[np.ndarray]], float, bool]:
+    """Collision boxes (2, 3) bounds per part of a metric ``obj`` (object frame), the
+    pitch used and whether they came from the cache. See the module docstring."""
+    cache_dir = default_cache_dir() if cache_dir is None else Path(cache_dir)
+    path = cache_dir / f"{cache_key(obj, params)}.npz"
+    if path.is_file():
+        try:
+            boxes, pitch = _load(path)
+            return boxes, pitch, True
+        except Exception as e:  # noqa: BLE001 - a damaged cache entry is recomputed
+            log.warning("ignoring unreadable collision cache entry %s: %s", path, e)
+    scale = 1.0
+    while True:
+        grid = make_grid(obj, params, scale)
+        last = scale >= FALLBACK_SCALE
+        deadline = math.inf if last else time.perf_counter() + params.timeout
+        try:
+            boxes, _ = _decompose(obj, params, grid, deadline)
+            break
+        except _OutOfTime:
+            log.warning(
+                "voxel collision over %g s at pitch %.4f m; retrying at twice the pitch",
+                params.timeout,
+                grid.pitch,
+            )
+            scale *= 2
+    _save(path, boxes, grid.pitch)
+    return boxes, grid.pitch, False
+
+
+def articulated_pieces(
+    obj: ArticulatedObject,
+    params: VoxelCollisionParams = DEFAULT_PARAMS,
+    cache_dir: Path | None = None,
+) -> VoxelCollisionResult:
+    """:func:`articulated_boxes` as box meshes per part (object frame)."""
+    t0 = time.perf_counter()
+    boxes, pitch, cached = articulated_boxes(obj, params, cache_dir)
+    pieces = {name: [box_mesh(b) for b in bs] for name, bs in boxes.items()}
+    return VoxelCollisionResult(
+        pieces=pieces, pitch=pitch, seconds=time.perf_counter() - t0, cached=cached
+    )
