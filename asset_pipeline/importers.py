@@ -64,7 +64,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import trimesh
@@ -78,6 +78,9 @@ from generator.articulated import (
     is_bundle,
     save_bundle,
 )
+
+if TYPE_CHECKING:
+    from asset_pipeline.partnet import ImportResult
 
 log = logging.getLogger(__name__)
 
@@ -154,20 +157,34 @@ def _read_json(path: Path) -> Any:
 
 
 def find_sources(path: str | Path) -> list[Path]:
-    """Every ``diffuse_tree`` object.json at or under ``path`` (sorted).
+    """Every ``diffuse_tree`` object.json and PartNet-Mobility folder at or under ``path`` (sorted).
 
     ``path`` may be an object.json file, an object folder, or any folder above
     object folders (searched recursively). Bundles of this project are skipped.
+    PartNet-Mobility objects (a folder holding ``mobility.urdf`` and
+    ``textured_objs/``, see :mod:`asset_pipeline.partnet`) are returned as their
+    folders; ``path`` may also be one of them or its ``mobility.urdf``.
     """
+    from asset_pipeline import partnet
+
     path = Path(path)
+    if path.is_file() and path.name == partnet.URDF_NAME:
+        path = path.parent
+    if path.is_dir() and partnet.is_partnet_folder(path):
+        return [path]
+    partnet_dirs: list[Path] = []
     if path.is_file():
         candidates = [path]
     elif path.is_dir():
-        candidates = (
-            sorted(path.rglob("*.json"))
-            if not (path / "object.json").is_file()
-            else [path / "object.json"]
-        )
+        if (path / "object.json").is_file():
+            candidates = [path / "object.json"]
+        else:
+            partnet_dirs = partnet.find_objects(path)
+            candidates = [
+                c
+                for c in sorted(path.rglob("*.json"))
+                if not any(c.is_relative_to(d) for d in partnet_dirs)
+            ]
     else:
         raise ImportFormatError(f"{path}: no such file or folder")
     found = []
@@ -188,9 +205,11 @@ def find_sources(path: str | Path) -> list[Path]:
             raise ImportFormatError(
                 f"{c}: no 'diffuse_tree' (or 'arti_tree') list; supported: CAGE/SINGAPO/PAct object.json"
             )
+    found = sorted(found + partnet_dirs)
     if not found:
         raise ImportFormatError(
-            f"{path}: no CAGE/SINGAPO/PAct object.json (with 'diffuse_tree') found"
+            f"{path}: no CAGE/SINGAPO/PAct object.json (with 'diffuse_tree') "
+            "or PartNet-Mobility folder (mobility.urdf + textured_objs/) found"
         )
     return found
 
@@ -521,21 +540,53 @@ def _object_id(src: Path) -> str:
 
 
 def import_path(
-    path: str | Path, out: str | Path, options: ImportOptions | None = None
-) -> list[Path]:
-    """Import every CAGE/SINGAPO/PAct object under ``path`` as a bundle in ``out/<id>/``.
+    path: str | Path,
+    out: str | Path,
+    options: ImportOptions | None = None,
+    *,
+    height: float | None = None,
+) -> ImportResult:
+    """Import every CAGE/SINGAPO/PAct or PartNet-Mobility object under ``path`` into ``out/<id>/``.
 
-    Returns the bundle folders, in source order. The id is the object folder's name
-    (made filename-safe; a numeric suffix keeps ids unique). An existing bundle is an
-    error unless ``options.overwrite``. Raises :class:`ImportFormatError` naming the
-    file and field on unsupported input; nothing is written for a source that fails.
+    Returns the bundle folders, in source order, as an
+    :class:`~asset_pipeline.partnet.ImportResult` (a list of paths whose
+    ``failures`` lists the PartNet-Mobility objects that could not be imported). The
+    id is the object folder's name (made filename-safe; a numeric suffix keeps ids
+    unique). ``diffuse_tree`` sources are all-or-nothing: an existing bundle is an
+    error unless ``options.overwrite``, and :class:`ImportFormatError` naming the
+    file and field is raised on unsupported input before anything is written.
+    PartNet-Mobility objects are converted by :mod:`asset_pipeline.partnet`, one at a
+    time: a bad one is recorded in ``failures`` and the others go on; ``height``
+    (metres) sets their metric scale (it does not apply to ``diffuse_tree`` sources).
     """
+    from asset_pipeline import partnet
+
     opts = options or ImportOptions()
     path, out = Path(path), Path(out)
+    pn_opts = partnet.PartnetOptions(
+        category=opts.category, height=height, overwrite=opts.overwrite
+    )
     sources = find_sources(path)
-    objects = [(src, convert_tree(src, opts)) for src in sources]  # all-or-nothing
-    written, used = [], set()
-    for src, obj in objects:
+    objects = {
+        src: convert_tree(src, opts) for src in sources if not src.is_dir()
+    }  # all-or-nothing
+    if objects and height is not None:
+        log.warning(
+            "--height applies to PartNet-Mobility objects only; %d object.json source(s) "
+            "keep the category default",
+            len(objects),
+        )
+    written = partnet.ImportResult()
+    used: set[str] = set()
+    for src in sources:
+        if src.is_dir():  # a PartNet-Mobility object folder
+            res = partnet.import_objects([src], out, pn_opts, used=used)
+            written.extend(res)
+            written.failures.extend(res.failures)
+            written.warnings.extend(res.warnings)
+            written.seconds.update(res.seconds)
+            continue
+        obj = objects[src]
         base_id = _object_id(src)
         oid, k = base_id, 1
         while oid in used:

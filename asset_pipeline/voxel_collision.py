@@ -47,9 +47,11 @@ from scipy import ndimage
 
 from generator.articulated import ArticulatedObject, Part, Primitive, atomic_write_bytes
 
+from .sweep_geometry import HullSet, swept_hulls
+
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 #: Past the time-out the pitch doubles; at this multiple it runs to the end whatever
 #: it takes (a coarse but valid, sweep-free decomposition).
 FALLBACK_SCALE = 8.0
@@ -60,9 +62,9 @@ class VoxelCollisionParams:
     """How fine and how many: all part of the cache key."""
 
     #: Voxels along the object's largest rest extent (the pitch is clamped below).
-    resolution: int = 192
-    min_pitch: float = 0.003
-    max_pitch: float = 0.008
+    resolution: int = 128
+    min_pitch: float = 0.004
+    max_pitch: float = 0.010
     #: Voxels kept free around every sweep (the gap between base and part collision).
     clearance: int = 1
     #: A merge may add at most this fraction of empty volume to the merged box.
@@ -355,6 +357,153 @@ def box_primitive(bounds: np.ndarray) -> Primitive:
     return Primitive("box", hi - lo, trimesh.transformations.translation_matrix(0.5 * (lo + hi)))
 
 
+# --------------------------------------------------------------------------- exact refinement
+
+
+class PointIndex:
+    """Points bucketed by grid cell, for the points inside any box in time ~ its cells."""
+
+    def __init__(self, grid: Grid, points: np.ndarray) -> None:
+        idx, inside = grid.index(points)
+        flat = np.ravel_multi_index(idx[inside].T, grid.shape)
+        order = np.argsort(flat, kind="stable")
+        self.grid = grid
+        self.points = points[inside][order]
+        self.flat = flat[order]
+
+    def inside(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """(M, 3) points within [lo, hi] (metres)."""
+        g = self.grid
+        a = np.clip(np.floor((lo - g.origin) / g.pitch).astype(int), 0, np.array(g.shape) - 1)
+        b = np.clip(np.floor((hi - g.origin) / g.pitch).astype(int), 0, np.array(g.shape) - 1)
+        cells = np.stack(
+            np.meshgrid(*(np.arange(a[k], b[k] + 1) for k in range(3)), indexing="ij"), -1
+        ).reshape(-1, 3)
+        flat = np.ravel_multi_index(cells.T, g.shape)
+        start = np.searchsorted(self.flat, flat, side="left")
+        stop = np.searchsorted(self.flat, flat, side="right")
+        counts = stop - start
+        total = int(counts.sum())
+        if total == 0:
+            return np.zeros((0, 3))
+        # indices start[i] .. stop[i] - 1 of every cell, without a Python loop
+        offsets = np.repeat(start - np.cumsum(counts) + counts, counts)
+        take = offsets + np.arange(total)
+        p = self.points[take]
+        return p[np.all((p >= lo) & (p <= hi), axis=1)]
+
+
+def _tight(lo: np.ndarray, hi: np.ndarray, index: PointIndex, min_thickness: float):
+    """[lo, hi] shrunk to the points in it (None when it holds none), at least
+    ``min_thickness`` thick."""
+    p = index.inside(lo, hi)
+    if len(p) == 0:
+        return None
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    mid, short = 0.5 * (lo + hi), (hi - lo) < min_thickness
+    return (
+        np.where(short, mid - 0.5 * min_thickness, lo),
+        np.where(short, mid + 0.5 * min_thickness, hi),
+    )
+
+
+def refine_boxes(
+    boxes: list[np.ndarray],
+    index: PointIndex,
+    forbidden: HullSet,
+    margin: float,
+    min_size: float,
+) -> list[np.ndarray]:
+    """Boxes ((2, 3) bounds) kept off ``forbidden`` (with ``margin``): a box that meets it
+    is halved across its longest side, each half tightened to its points, until the
+    halves are clear or no longer than ``min_size`` (then dropped)."""
+    out: list[np.ndarray] = []
+    todo = [np.asarray(b, dtype=np.float64) for b in boxes]
+    while todo:
+        arr = np.array(todo)
+        hit = forbidden.intersects(arr[:, 0], arr[:, 1], margin)
+        out += [b for b, h in zip(todo, hit, strict=True) if not h]
+        todo = []
+        for b in arr[hit]:
+            ext = b[1] - b[0]
+            k = int(np.argmax(ext))
+            if ext[k] <= min_size:
+                continue
+            mid = 0.5 * (b[0][k] + b[1][k])
+            for lo_k, hi_k in ((b[0][k], mid), (mid, b[1][k])):
+                lo, hi = b[0].copy(), b[1].copy()
+                lo[k], hi[k] = lo_k, hi_k
+                t = _tight(lo, hi, index, 0.0)
+                if t is not None:
+                    todo.append(np.stack(t))
+    return out
+
+
+def merge_exact(
+    boxes: list[np.ndarray],
+    index: PointIndex,
+    forbidden: HullSet,
+    margin: float,
+    slack: float,
+    max_boxes: int,
+    min_thickness: float,
+    pitch: float,
+) -> list[np.ndarray]:
+    """Merge neighbouring boxes ((2, 3) bounds) into their bounding box while it stays
+    off ``forbidden`` and within ``1 + slack`` of the two volumes (slack relaxed up to
+    1.0 while more than ``max_boxes`` remain); the results are tightened to their points.
+    Volumes count every side as at least ``pitch`` long, so thin boxes a fraction of a
+    voxel apart merge as voxels would."""
+    arr = np.array(boxes, dtype=np.float64).reshape(-1, 2, 3)
+    alive = np.ones(len(arr), bool)
+    limit = slack
+    touch_gap = max(2 * min_thickness, pitch)
+
+    def volume(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        return np.prod(np.maximum(hi - lo, pitch), axis=-1)
+
+    while True:
+        merged_any = False
+        vol = volume(arr[:, 0], arr[:, 1])
+        for i in np.argsort(vol, kind="stable"):
+            if not alive[i]:
+                continue
+            lo, hi = arr[i]
+            near = alive & np.all(
+                (arr[:, 0] <= hi + touch_gap) & (arr[:, 1] >= lo - touch_gap), axis=1
+            )
+            near[i] = False
+            cand = np.nonzero(near)[0]
+            if len(cand) == 0:
+                continue
+            ulo = np.minimum(arr[cand, 0], lo)
+            uhi = np.maximum(arr[cand, 1], hi)
+            uvol = volume(ulo, uhi)
+            ok = uvol <= (1.0 + limit) * (vol[i] + vol[cand])
+            if not ok.any():
+                continue
+            ok[ok] = ~forbidden.intersects(ulo[ok], uhi[ok], margin)
+            if not ok.any():
+                continue
+            k = int(np.argmin(np.where(ok, uvol, np.inf)))
+            arr[i] = (ulo[k], uhi[k])
+            vol[i] = uvol[k]
+            alive[cand[k]] = False
+            merged_any = True
+        arr, alive = arr[alive], alive[alive]
+        if len(arr) <= max_boxes and not merged_any:
+            break
+        if not merged_any:
+            if limit >= 1.0:
+                break
+            limit = min(1.0, limit + 0.2)
+    out = []
+    for lo, hi in arr:
+        t = _tight(lo, hi, index, min_thickness)
+        out.append(np.stack(t) if t is not None else np.stack([lo, hi]))
+    return out
+
+
 # --------------------------------------------------------------------------- the object
 
 
@@ -368,10 +517,38 @@ def _filled_points(occ_filled: np.ndarray, occ_surface: np.ndarray, grid: Grid) 
     return np.concatenate([c - h, c + h])
 
 
+def _voxel_boxes(
+    keep: np.ndarray,
+    blocked: np.ndarray,
+    grid: Grid,
+    cells: CellBounds,
+    params: VoxelCollisionParams,
+) -> list[np.ndarray]:
+    """Boxes ((2, 3) bounds) of the cells ``keep``: runs, merged off ``blocked``, tightened."""
+    if not keep.any():
+        return []
+    runs = np.array(_runs(keep), dtype=np.int64).reshape(-1, 6)
+    merged = merge_boxes(
+        runs, _Volume(keep), _Volume(blocked), params.merge_slack, params.max_pieces
+    )
+    return [tighten(b, grid, cells, params.min_thickness) for b in merged]
+
+
+def _overlap(a: list[np.ndarray], b: list[np.ndarray], tol: float) -> bool:
+    """True when a box of ``a`` and a box of ``b`` overlap by more than ``tol`` on every axis."""
+    if not a or not b:
+        return False
+    A, B = np.array(a), np.array(b)
+    depth = np.minimum(A[:, None, 1], B[None, :, 1]) - np.maximum(A[:, None, 0], B[None, :, 0])
+    return bool(np.all(depth > tol, axis=2).any())
+
+
 def _decompose(
     obj: ArticulatedObject, params: VoxelCollisionParams, grid: Grid, deadline: float
 ) -> tuple[dict[str, list[np.ndarray]], dict[str, int]]:
     spacing = 0.5 * grid.pitch
+    margin = params.clearance * grid.pitch * 0.25
+    min_size = 2.0 * params.min_thickness
     occ, pts = {}, {}
     for p in obj.parts:
         samples = surface_points(p.mesh, spacing)
@@ -381,46 +558,63 @@ def _decompose(
         pts[p.name] = np.concatenate([samples, _filled_points(filled, surface, grid)])
         _check(deadline)
     movable = [p for p in obj.parts if p.joint is not None and p.joint.movable]
-    grow = ndimage.generate_binary_structure(3, 3)
-    swept: dict[str, np.ndarray] = {}
+    no_block = np.zeros(grid.shape, bool)
+    boxes: dict[str, list[np.ndarray]] = {}
+    index: dict[str, PointIndex] = {}
+    # 1. movable parts: their own voxels
     for p in movable:
-        s = swept_occupancy(p, occ[p.name], grid)
-        swept[p.name] = ndimage.binary_dilation(s, grow, iterations=max(1, params.clearance))
+        boxes[p.name] = _voxel_boxes(
+            occ[p.name], no_block, grid, CellBounds(grid, pts[p.name]), params
+        )
+        index[p.name] = PointIndex(grid, pts[p.name])
         _check(deadline)
-    blocked: dict[str, np.ndarray] = {}
-    base = obj.base.name
-    blocked[base] = np.zeros(grid.shape, bool)
-    for s in swept.values():
-        blocked[base] |= s
-    for p in movable:
-        blocked[p.name] = np.zeros(grid.shape, bool)
-    # two movable parts whose rest volumes touch: the smaller one yields
-    rest = {p.name: ndimage.binary_dilation(occ[p.name], grow, iterations=params.clearance)
-            for p in movable}  # fmt: skip
+    # 2. two movable parts whose meshes interpenetrate at rest: the smaller one yields
     for a in movable:
         for b in movable:
-            if a.name >= b.name:
-                continue
-            both = occ[a.name] & rest[b.name] | occ[b.name] & rest[a.name]
-            if both.any():
-                small = a if occ[a.name].sum() <= occ[b.name].sum() else b
-                big = b if small is a else a
-                blocked[small.name] |= rest[big.name] & occ[small.name]
-    boxes: dict[str, list[np.ndarray]] = {}
-    carved: dict[str, int] = {}
-    for p in obj.parts:
-        keep = occ[p.name] & ~blocked[p.name]
-        carved[p.name] = int((occ[p.name] & blocked[p.name]).sum())
-        if not keep.any():
-            boxes[p.name] = []
-            continue
-        runs = np.array(_runs(keep), dtype=np.int64).reshape(-1, 6)
-        merged = merge_boxes(
-            runs, _Volume(keep), _Volume(blocked[p.name]), params.merge_slack, params.max_pieces
-        )
-        cells = CellBounds(grid, pts[p.name])
-        boxes[p.name] = [tighten(b, grid, cells, params.min_thickness) for b in merged]
+            if a.name < b.name and _overlap(boxes[a.name], boxes[b.name], params.min_thickness):
+                small, big = (a, b) if occ[a.name].sum() <= occ[b.name].sum() else (b, a)
+                other = HullSet()
+                for box in boxes[big.name]:
+                    other.add_box(box[0], box[1])
+                refined = refine_boxes(boxes[small.name], index[small.name], other, 0.0, min_size)
+                boxes[small.name] = merge_exact(
+                    refined, index[small.name], other, 0.0, params.merge_slack,
+                    params.max_pieces, params.min_thickness, grid.pitch,
+                )  # fmt: skip
+    # 3. the space each movable part needs: exact hulls, and voxels for a coarse first cut
+    hulls = HullSet()
+    grow = ndimage.generate_binary_structure(3, 3)
+    raw = np.zeros(grid.shape, bool)
+    for p in movable:
+        swept_hulls(p.joint, boxes[p.name], hulls)  # type: ignore[arg-type]
+        raw |= swept_occupancy(p, occ[p.name], grid)
         _check(deadline)
+    blocked = ndimage.binary_dilation(raw, grow, iterations=max(1, params.clearance))
+    # 4. the base: voxels off the dilated sweeps, plus its surface in the dilation's
+    # margin that the exact sweeps leave free; tightened to free points only
+    base = obj.base.name
+    idx, inside = grid.index(pts[base])
+    in_blocked = np.zeros(len(idx), bool)
+    in_blocked[inside] = blocked[idx[inside, 0], idx[inside, 1], idx[inside, 2]]
+    near = pts[base][in_blocked]
+    near = near[~hulls.intersects(near, near, margin)] if len(near) else near
+    free = np.concatenate([pts[base][~in_blocked], near])
+    index[base] = PointIndex(grid, free)
+    first = _voxel_boxes(occ[base] & ~blocked, blocked, grid, CellBounds(grid, free), params)
+    recovered = []
+    if len(near):
+        near_cells = CellBounds(grid, near)
+        for b in np.array(_runs(grid.splat(near)), dtype=np.int64).reshape(-1, 6):
+            lo, hi = near_cells.of(b)
+            recovered.append(np.stack([lo, hi]))
+    _check(deadline)
+    kept = refine_boxes(first + recovered, index[base], hulls, margin, min_size)
+    _check(deadline)
+    boxes[base] = merge_exact(
+        kept, index[base], hulls, margin, params.merge_slack, params.max_pieces,
+        params.min_thickness, grid.pitch,
+    )  # fmt: skip
+    carved = {base: int((occ[base] & blocked).sum())}
     return boxes, carved
 
 
@@ -431,6 +625,56 @@ class _OutOfTime(Exception):
 def _check(deadline: float) -> None:
     if time.perf_counter() > deadline:
         raise _OutOfTime
+
+
+# --------------------------------------------------------------------------- measures
+
+
+def distance_to_boxes(points: np.ndarray, boxes: list[np.ndarray]) -> np.ndarray:
+    """(N,) distance (m) from each point to the nearest of ``boxes`` ((2, 3) bounds)."""
+    best = np.full(len(points), np.inf)
+    for lo, hi in boxes:
+        d = np.maximum(np.maximum(lo - points, points - hi), 0.0)
+        best = np.minimum(best, np.linalg.norm(d, axis=1))
+    return best
+
+
+def coverage(
+    obj: ArticulatedObject,
+    boxes: dict[str, list[np.ndarray]],
+    spacing: float = 0.005,
+    relative: float = 0.01,
+    absolute: float = 0.005,
+) -> dict[str, dict[str, float]]:
+    """How well each part's boxes cover its surface, per part.
+
+    Surface samples (``spacing`` m apart) farther than max(``absolute``, ``relative`` x
+    the part's largest extent) from the part's boxes count as uncovered; the base's
+    samples inside another part's swept space (the exact hulls of that part's boxes)
+    are left out: no piece may cover them. Returns per part ``uncovered`` (fraction),
+    ``p95`` and ``max`` distance (m), ``tolerance`` (m) and ``excluded`` (fraction).
+    """
+    hulls = HullSet()
+    for p in obj.parts:
+        if p.joint is not None and p.joint.movable:
+            swept_hulls(p.joint, boxes[p.name], hulls)
+    out = {}
+    for p in obj.parts:
+        samples = surface_points(p.mesh, spacing)
+        excluded = np.zeros(len(samples), bool)
+        if p.joint is None and len(hulls):
+            excluded = hulls.intersects(samples, samples, 0.0)
+        kept = samples[~excluded]
+        d = distance_to_boxes(kept, boxes[p.name]) if len(kept) else np.zeros(1)
+        tol = max(absolute, relative * float(np.ptp(p.mesh.vertices, axis=0).max()))
+        out[p.name] = {
+            "uncovered": float((d > tol).mean()),
+            "p95": float(np.percentile(d, 95)),
+            "max": float(d.max()),
+            "tolerance": tol,
+            "excluded": float(excluded.mean()),
+        }
+    return out
 
 
 # --------------------------------------------------------------------------- cache

@@ -287,24 +287,54 @@ def ls(
 @reports_errors
 def import_(
     path: Path = typer.Argument(
-        ..., help="A PAct or SINGAPO output (object.json) or a folder of them."
+        ...,
+        help="A PAct or SINGAPO output (object.json), a PartNet-Mobility object folder "
+        "(mobility.urdf + textured_objs/), or a folder of them (searched recursively).",
     ),
     out: Path = typer.Option(..., "--out", "-o", help="Folder to write bundles into."),
     up: str = typer.Option("y", help="Up axis of the source meshes (y for SINGAPO/PAct)."),
-    category: str = typer.Option(None, help="Category to record when the source has none."),
+    category: str = typer.Option(
+        None, help="Category to record (overrides the source's, e.g. PartNet's model_cat)."
+    ),
     overwrite: bool = typer.Option(False, help="Replace existing bundles."),
+    height: float = typer.Option(
+        None,
+        "--height",
+        help="Closed height in metres of PartNet-Mobility objects: sets the bundle's metric "
+        "scale (default: the category's height, applied by pact build).",
+    ),
 ) -> None:
-    """Import official PAct / SINGAPO outputs (diffuse_tree object.json) as bundles."""
+    """Import PAct / SINGAPO outputs (diffuse_tree object.json) and PartNet-Mobility objects.
+
+    Prints one bundle folder per line. A PartNet-Mobility object that cannot be read
+    is reported (``failed PATH: what is wrong``) and the others go on; exit code 1 when
+    some failed, 2 when nothing could be imported.
+    """
     from asset_pipeline.importers import ImportFormatError, ImportOptions, import_path
 
+    if height is not None and not 0 < height <= 10:
+        raise fail(f"--height: must be the object's height in metres, in (0, 10]; got {height}")
     try:
         written = import_path(
-            path, out, ImportOptions(up=up, category=category, overwrite=overwrite)
+            path,
+            out,
+            ImportOptions(up=up, category=category, overwrite=overwrite),
+            height=height,
         )
     except ImportFormatError as e:
         raise fail(e) from e
     for d in written:
         print(d)
+    failures = getattr(written, "failures", [])
+    for f in failures:
+        where = "" if f.message.startswith(str(f.source)) else f"{f.source}: "
+        console.print(f"[red]failed[/red] {escape(where + f.message)}")
+    if failures:
+        console.print(
+            f"imported {len(written)} of {len(written) + len(failures)} objects; "
+            f"{len(failures)} failed"
+        )
+        raise typer.Exit(1 if written else 2)
 
 
 @app.command()
