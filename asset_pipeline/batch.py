@@ -92,9 +92,15 @@ class ConvertSettings:
     repair: bool = True
     preview: bool = True
     seed: int = 0
+    #: How parts collide (asset_pipeline.build.COLLISION_METHODS): "auto" keeps a
+    #: generated object's box layout, "voxel" decomposes its meshes instead.
+    collision: str = "auto"
 
     def digest(self, generator_version: str = "") -> str:
-        text = json.dumps({**asdict(self), "generator_version": generator_version}, sort_keys=True)
+        fields = asdict(self)
+        if fields["collision"] == "auto":  # the default: digests of older runs still match
+            del fields["collision"]
+        text = json.dumps({**fields, "generator_version": generator_version}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -172,7 +178,7 @@ def convert_item(
     Returns the result with ``path`` set to the complete staged asset folder (the
     driver moves it into place) or a failure with its stage and reason.
     """
-    from asset_pipeline.build import build_asset
+    from asset_pipeline.build import BuildOptions, build_asset
     from generator.articulated import save_bundle
 
     out = Path(out)
@@ -216,7 +222,9 @@ def convert_item(
         shutil.copyfile(item.image_path, staging / f"input{item.image_path.suffix.lower()}")
         if item.mask_path is not None:
             shutil.copyfile(item.mask_path, staging / "input.mask.png")
-        build_asset(staging, height=loaded.height)
+        build_asset(
+            staging, height=loaded.height, options=BuildOptions(collision=settings.collision)
+        )
         result.stage_seconds["build"] = time.perf_counter() - t
 
         status = "ok"

@@ -107,16 +107,17 @@ def collide_boxes(obj: ArticulatedObject, options: BuildOptions = BuildOptions()
     whole object at once, so the base's never enter a drawer's slot or a door's swing;
     they become the part's primitives, its collision pieces and its mass solid.
     """
-    if options.collision == "coacd":
-        return
-    todo = [p for p in obj.parts if options.collision == "voxel" or not p.primitives]
+    names = set(voxel_parts(obj, options))
+    todo = [p for p in obj.parts if p.name in names]
     if not todo:
         return
     cache = None if options.cache_dir is None else Path(options.cache_dir) / "voxel"
     boxes, pitch, cached = articulated_boxes(obj, options.voxel, cache)
     for p in todo:
         if not boxes[p.name]:
-            raise BuildError(f"part {p.name}: no collision box survived (is it all inside a sweep?)")
+            raise BuildError(
+                f"part {p.name}: no collision box survived (is it all inside a sweep?)"
+            )
         p.primitives = [box_primitive(b) for b in boxes[p.name]]
     log.info(
         "%d part(s): %d voxel boxes at pitch %.1f mm%s",
@@ -132,9 +133,21 @@ def prepare_object(
     height: float | None = None,
     options: BuildOptions = BuildOptions(),
 ) -> ArticulatedObject:
-    """``obj`` at metric scale, in the frame convention, with watertight part meshes."""
+    """``obj`` at metric scale, in the frame convention, with watertight part meshes.
+
+    The parts that will collide as voxel boxes (:func:`collide_boxes`) keep their meshes:
+    those are visuals only.
+    """
     metric = to_metric(obj, height=height, default_heights=options.default_heights)
-    return watertight_object(metric, options.remesh_resolution)
+    return watertight_object(metric, options.remesh_resolution, keep=voxel_parts(metric, options))
+
+
+def voxel_parts(obj: ArticulatedObject, options: BuildOptions) -> list[str]:
+    """The parts :func:`collide_boxes` gives voxel boxes: none with "coacd", every part
+    with "voxel", those without primitives with "auto"."""
+    if options.collision == "coacd":
+        return []
+    return [p.name for p in obj.parts if options.collision == "voxel" or not p.primitives]
 
 
 def build_asset(

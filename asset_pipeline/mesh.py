@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import copy
 import logging
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 import numpy as np
 import trimesh
@@ -316,20 +316,23 @@ def has_texture_image(mesh: trimesh.Trimesh) -> bool:
 
 
 def watertight_object(
-    obj: ArticulatedObject, resolution: int = REMESH_RESOLUTION
+    obj: ArticulatedObject,
+    resolution: int = REMESH_RESOLUTION,
+    keep: Collection[str] = (),
 ) -> ArticulatedObject:
     """Copy of ``obj`` with every part mesh replaced by :func:`watertight` of it.
 
-    A part whose mesh carries a texture image and is not a closed volume (an artist's
-    mesh: open shells, loose pieces) keeps its mesh as it is: remeshing would lose the
-    texture. Such a part needs primitives or articulation-aware collision boxes
-    (:mod:`asset_pipeline.voxel_collision`) for its physics. Raises MeshRepairError
-    naming the part when one cannot be closed.
+    Parts named in ``keep`` keep their meshes as they are, and so does a part whose
+    mesh carries a texture image and is not a closed volume (remeshing would lose the
+    texture): their meshes are visuals only, and their physics comes from primitives
+    or articulation-aware collision boxes (:mod:`asset_pipeline.voxel_collision`). An
+    artist's open shells stay as the artist made them. Raises MeshRepairError naming
+    the part when one cannot be closed.
     """
     parts = []
     for p in obj.parts:
         try:
-            if has_texture_image(p.mesh) and not is_closed_volume(p.mesh):
+            if p.name in keep or (has_texture_image(p.mesh) and not is_closed_volume(p.mesh)):
                 m = p.mesh.copy()
             else:
                 m = watertight(p.mesh, resolution)

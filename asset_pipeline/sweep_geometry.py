@@ -69,10 +69,15 @@ def _hull_of(points: np.ndarray) -> _Hull | None:
 
 
 class HullSet:
-    """A union of convex hulls; boxes are tested against it with a margin."""
+    """A union of convex hulls; boxes are tested against it with a margin.
+
+    The hulls' data are stacked (axes padded by repeating a hull's first axis) so that a
+    test of N boxes against H hulls and K axes is one (N, H, K) array computation.
+    """
 
     def __init__(self) -> None:
         self.hulls: list[_Hull] = []
+        self._stacked: tuple[np.ndarray, ...] | None = None
 
     def __len__(self) -> int:
         return len(self.hulls)
@@ -82,24 +87,44 @@ class HullSet:
         h = _hull_of(np.asarray(points, dtype=np.float64))
         if h is not None:
             self.hulls.append(h)
+            self._stacked = None
 
     def add_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         self.add(box_corners(lo, hi))
+
+    def _stack(self) -> tuple[np.ndarray, ...]:
+        if self._stacked is None:
+            k = max(len(h.axes) for h in self.hulls)
+            axes = np.empty((len(self.hulls), k, 3))
+            pmin = np.empty((len(self.hulls), k))
+            pmax = np.empty((len(self.hulls), k))
+            for i, h in enumerate(self.hulls):
+                n = len(h.axes)
+                axes[i, :n], pmin[i, :n], pmax[i, :n] = h.axes, h.proj_min, h.proj_max
+                axes[i, n:], pmin[i, n:], pmax[i, n:] = h.axes[0], h.proj_min[0], h.proj_max[0]
+            lo = np.array([h.lo for h in self.hulls])
+            hi = np.array([h.hi for h in self.hulls])
+            self._stacked = (lo, hi, axes, pmin, pmax)
+        return self._stacked
 
     def intersects(self, lo: np.ndarray, hi: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """(N,) True where box [lo[i], hi[i]] (grown by ``margin``) meets any hull."""
         lo = np.atleast_2d(lo) - margin
         hi = np.atleast_2d(hi) + margin
         hit = np.zeros(len(lo), bool)
-        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        for h in self.hulls:
-            near = ~hit & np.all((lo <= h.hi) & (hi >= h.lo), axis=1)
-            if not near.any():
-                continue
-            c = centre[near] @ h.axes.T  # (M, K)
-            r = half[near] @ np.abs(h.axes).T
-            separated = ((c + r) < h.proj_min) | ((c - r) > h.proj_max)
-            hit[np.nonzero(near)[0][~separated.any(axis=1)]] = True
+        if not self.hulls:
+            return hit
+        hlo, hhi, axes, pmin, pmax = self._stack()
+        # candidate pairs: overlapping bounds
+        near = np.all((lo[:, None] <= hhi[None]) & (hi[:, None] >= hlo[None]), axis=2)  # (N, H)
+        bi, hj = np.nonzero(near)
+        for start in range(0, len(bi), 4096):  # bounded memory: pairs x K axes at a time
+            b, h = bi[start : start + 4096], hj[start : start + 4096]
+            centre, half = 0.5 * (lo[b] + hi[b]), 0.5 * (hi[b] - lo[b])
+            c = np.einsum("pkd,pd->pk", axes[h], centre)
+            r = np.einsum("pkd,pd->pk", np.abs(axes[h]), half)
+            separated = ((c + r) < pmin[h]) | ((c - r) > pmax[h])
+            hit[b[~separated.any(axis=1)]] = True
         return hit
 
 

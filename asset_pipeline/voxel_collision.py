@@ -51,7 +51,7 @@ from .sweep_geometry import HullSet, swept_hulls
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 2
+CACHE_VERSION = 7
 #: Past the time-out the pitch doubles; at this multiple it runs to the end whatever
 #: it takes (a coarse but valid, sweep-free decomposition).
 FALLBACK_SCALE = 8.0
@@ -65,8 +65,10 @@ class VoxelCollisionParams:
     resolution: int = 128
     min_pitch: float = 0.004
     max_pitch: float = 0.010
-    #: Voxels kept free around every sweep (the gap between base and part collision).
+    #: Voxels kept free around every sweep in the first, voxel cut.
     clearance: int = 1
+    #: Distance (m) kept between the base's boxes and the exact sweeps.
+    margin: float = 0.0005
     #: A merge may add at most this fraction of empty volume to the merged box.
     merge_slack: float = 0.12
     #: Pieces per part at most (merging relaxes its slack up to 0.5 to get there).
@@ -95,28 +97,37 @@ class VoxelCollisionResult:
 
 
 def surface_points(mesh: trimesh.Trimesh, spacing: float) -> np.ndarray:
-    """(N, 3) points on ``mesh``'s triangles no farther than ``spacing`` apart.
+    """(N, 3) points on ``mesh``'s triangles, every surface point within ``spacing`` of one.
 
-    Each triangle gets the barycentric lattice of order n = ceil(longest edge /
-    spacing): points (i / n, j / n) for i + j <= n, vertices and edges included.
+    Each triangle is covered by rows parallel to its longest edge, at most ``spacing``
+    apart, each row sampled at most ``spacing`` apart (its ends included), so the count
+    grows with the area, not with the longest edge squared (slivers stay cheap).
     Deterministic (no random sampling).
     """
     tri = np.asarray(mesh.triangles, dtype=np.float64)
     if len(tri) == 0:
         return np.zeros((0, 3))
-    edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1)
-    order = np.maximum(1, np.ceil(edges / spacing)).astype(np.int64)
-    out = [tri.reshape(-1, 3)]
-    for n in np.unique(order):
-        if n < 2:
-            continue
-        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
-        keep = (i + j) <= n
-        w1, w2 = i[keep] / n, j[keep] / n
-        w = np.stack([1.0 - w1 - w2, w1, w2], axis=1)  # (K, 3)
-        sel = tri[order == n]  # (T, 3, 3)
-        out.append(np.einsum("kv,tvc->tkc", w, sel).reshape(-1, 3))
-    return np.concatenate(out)
+    # order each triangle's vertices so that (a, b) is its longest edge and c the apex
+    lengths = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)  # edges 01, 12, 20
+    k = np.argmax(lengths, axis=1)
+    a = tri[np.arange(len(tri)), k]
+    b = tri[np.arange(len(tri)), (k + 1) % 3]
+    c = tri[np.arange(len(tri)), (k + 2) % 3]
+    long = lengths[np.arange(len(tri)), k]
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    height = np.where(long > 0, area2 / np.maximum(long, 1e-300), 0.0)
+    rows = np.maximum(1, np.ceil(height / spacing)).astype(np.int64)  # row gaps per triangle
+    # one entry per row: its triangle and t = fraction of the way from edge ab to c
+    tri_of_row = np.repeat(np.arange(len(tri)), rows + 1)
+    first = np.repeat(np.cumsum(rows + 1) - (rows + 1), rows + 1)
+    t = (np.arange(len(tri_of_row)) - first) / rows[tri_of_row]
+    p0 = a[tri_of_row] + t[:, None] * (c[tri_of_row] - a[tri_of_row])
+    p1 = b[tri_of_row] + t[:, None] * (c[tri_of_row] - b[tri_of_row])
+    per_row = np.ceil(long[tri_of_row] * (1.0 - t) / spacing).astype(np.int64) + 1
+    row_of_point = np.repeat(np.arange(len(t)), per_row)
+    start = np.repeat(np.cumsum(per_row) - per_row, per_row)
+    u = (np.arange(len(row_of_point)) - start) / np.maximum(per_row[row_of_point] - 1, 1)
+    return p0[row_of_point] + u[:, None] * (p1[row_of_point] - p0[row_of_point])
 
 
 # --------------------------------------------------------------------------- the grid
@@ -265,16 +276,20 @@ def merge_boxes(
     """Merge neighbouring boxes (M, 6) greedily; see the module docstring.
 
     A merge replaces two boxes by their bounding box when it holds no blocked cell and
-    its filled cells are at least ``1 - slack`` of its volume (relaxed step by step up
-    to 0.5 while more than ``max_boxes`` remain). Smallest boxes merge first.
+    its filled cells are at least ``1 - slack`` of its volume. Smallest boxes merge
+    first. While more than ``max_boxes`` remain the slack is relaxed step by step
+    (:func:`_slacks`), merging only until ``max_boxes`` remain.
     """
     arr = np.array(boxes, dtype=np.int64).reshape(-1, 6)
     alive = np.ones(len(arr), bool)
-    limit = slack
+    slacks, level = _slacks(slack), 0
     while True:
+        limit = slacks[level]
         merged_any = False
         vol = np.prod(arr[:, 1::2] - arr[:, 0::2], axis=1)
         for i in np.argsort(vol, kind="stable"):
+            if level > 0 and alive.sum() <= max_boxes:
+                break
             if not alive[i]:
                 continue
             b = arr[i]
@@ -296,13 +311,19 @@ def merge_boxes(
             arr[cand[k]] = 0
             merged_any = True
         arr, alive = arr[alive], alive[alive]
-        if len(arr) <= max_boxes and not merged_any:
+        if len(arr) <= max_boxes and (level > 0 or not merged_any):
             break
         if not merged_any:
-            if limit >= 0.5:
+            if level == len(slacks) - 1:
                 break
-            limit = min(0.5, limit + 0.1)
+            level += 1
     return arr
+
+
+def _slacks(slack: float) -> list[float]:
+    """The slacks of merging: ``slack``, then ever larger ones up to unbounded (any merge
+    that stays off the blocked space), tried in turn while too many boxes remain."""
+    return [slack] + [x for x in (0.25, 0.5, 1.0, 2.0, 4.0, 16.0, math.inf) if x > slack]
 
 
 class CellBounds:
@@ -450,22 +471,25 @@ def merge_exact(
     pitch: float,
 ) -> list[np.ndarray]:
     """Merge neighbouring boxes ((2, 3) bounds) into their bounding box while it stays
-    off ``forbidden`` and within ``1 + slack`` of the two volumes (slack relaxed up to
-    1.0 while more than ``max_boxes`` remain); the results are tightened to their points.
+    off ``forbidden`` and within ``1 + slack`` of the two volumes (slack relaxed while more
+    than ``max_boxes`` remain, :func:`_slacks`); the results are tightened to their points.
     Volumes count every side as at least ``pitch`` long, so thin boxes a fraction of a
     voxel apart merge as voxels would."""
     arr = np.array(boxes, dtype=np.float64).reshape(-1, 2, 3)
     alive = np.ones(len(arr), bool)
-    limit = slack
     touch_gap = max(2 * min_thickness, pitch)
 
     def volume(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         return np.prod(np.maximum(hi - lo, pitch), axis=-1)
 
+    slacks, level = _slacks(slack), 0
     while True:
+        limit = slacks[level]
         merged_any = False
         vol = volume(arr[:, 0], arr[:, 1])
         for i in np.argsort(vol, kind="stable"):
+            if level > 0 and alive.sum() <= max_boxes:
+                break
             if not alive[i]:
                 continue
             lo, hi = arr[i]
@@ -491,17 +515,47 @@ def merge_exact(
             alive[cand[k]] = False
             merged_any = True
         arr, alive = arr[alive], alive[alive]
-        if len(arr) <= max_boxes and not merged_any:
+        if len(arr) <= max_boxes and (level > 0 or not merged_any):
             break
         if not merged_any:
-            if limit >= 1.0:
+            if level == len(slacks) - 1:
                 break
-            limit = min(1.0, limit + 0.2)
+            level += 1
     out = []
     for lo, hi in arr:
-        t = _tight(lo, hi, index, min_thickness)
-        out.append(np.stack(t) if t is not None else np.stack([lo, hi]))
+        t = _tight(lo, hi, index, 0.0)
+        if t is not None:
+            out.append(thicken(t[0], t[1], min_thickness, forbidden, margin))
     return out
+
+
+#: Thickness (m) of a box squeezed between a surface and a sweep: thin enough for a
+#: 1 mm play, thick enough for PhysX to cook (validation wants 0.1 mm).
+SQUEEZED_THICKNESS = 0.0003
+
+
+def thicken(
+    lo: np.ndarray, hi: np.ndarray, min_thickness: float, forbidden: HullSet, margin: float
+) -> np.ndarray:
+    """(2, 3) ``[lo, hi]`` grown to ``min_thickness`` along its thin axes, centred when that
+    stays off ``forbidden``, else on whichever side does (a wall 1 mm from a drawer grows
+    away from the drawer), else only to SQUEEZED_THICKNESS."""
+    lo, hi = lo.copy(), hi.copy()
+    for k in np.nonzero((hi - lo) < min_thickness)[0]:
+        need = min_thickness - (hi[k] - lo[k])
+        options = ((0.5 * need, 0.5 * need), (0.0, need), (need, 0.0))
+        for down, up in options:
+            a, b = lo.copy(), hi.copy()
+            a[k] -= down
+            b[k] += up
+            if not forbidden.intersects(a, b, margin)[0]:
+                lo, hi = a, b
+                break
+        else:
+            grow = max(0.0, 0.5 * (SQUEEZED_THICKNESS - (hi[k] - lo[k])))
+            lo[k] -= grow
+            hi[k] += grow
+    return np.stack([lo, hi])
 
 
 # --------------------------------------------------------------------------- the object
@@ -534,6 +588,27 @@ def _voxel_boxes(
     return [tighten(b, grid, cells, params.min_thickness) for b in merged]
 
 
+#: A movable part's boxes are swept as at most this many enclosing boxes.
+SWEEP_ENVELOPES = 8
+
+
+def envelopes(boxes: list[np.ndarray], k: int) -> list[np.ndarray]:
+    """At most ``k`` boxes ((2, 3) bounds) enclosing ``boxes``: the pair whose bounding box
+    adds the least volume is merged, until ``k`` remain."""
+    out = [np.asarray(b, dtype=np.float64) for b in boxes]
+    while len(out) > k:
+        arr = np.array(out)
+        lo = np.minimum(arr[:, None, 0], arr[None, :, 0])
+        hi = np.maximum(arr[:, None, 1], arr[None, :, 1])
+        vol = np.prod(arr[:, 1] - arr[:, 0], axis=1)
+        added = np.prod(hi - lo, axis=2) - vol[:, None] - vol[None, :]
+        np.fill_diagonal(added, np.inf)
+        i, j = np.unravel_index(int(np.argmin(added)), added.shape)
+        merged = np.stack([lo[i, j], hi[i, j]])
+        out = [b for n, b in enumerate(out) if n not in (i, j)] + [merged]
+    return out
+
+
 def _overlap(a: list[np.ndarray], b: list[np.ndarray], tol: float) -> bool:
     """True when a box of ``a`` and a box of ``b`` overlap by more than ``tol`` on every axis."""
     if not a or not b:
@@ -547,7 +622,7 @@ def _decompose(
     obj: ArticulatedObject, params: VoxelCollisionParams, grid: Grid, deadline: float
 ) -> tuple[dict[str, list[np.ndarray]], dict[str, int]]:
     spacing = 0.5 * grid.pitch
-    margin = params.clearance * grid.pitch * 0.25
+    margin = params.margin
     min_size = 2.0 * params.min_thickness
     occ, pts = {}, {}
     for p in obj.parts:
@@ -586,19 +661,23 @@ def _decompose(
     grow = ndimage.generate_binary_structure(3, 3)
     raw = np.zeros(grid.shape, bool)
     for p in movable:
-        swept_hulls(p.joint, boxes[p.name], hulls)  # type: ignore[arg-type]
+        swept_hulls(p.joint, envelopes(boxes[p.name], SWEEP_ENVELOPES), hulls)  # type: ignore[arg-type]
         raw |= swept_occupancy(p, occ[p.name], grid)
         _check(deadline)
     blocked = ndimage.binary_dilation(raw, grow, iterations=max(1, params.clearance))
     # 4. the base: voxels off the dilated sweeps, plus its surface in the dilation's
     # margin that the exact sweeps leave free; tightened to free points only
     base = obj.base.name
+    # points in the dilation's margin get the exact test; points deep inside the voxel
+    # sweep (eroded) are inside the exact one too and are dropped
     idx, inside = grid.index(pts[base])
-    in_blocked = np.zeros(len(idx), bool)
-    in_blocked[inside] = blocked[idx[inside, 0], idx[inside, 1], idx[inside, 2]]
-    near = pts[base][in_blocked]
+    cell = np.zeros(len(idx), np.int8)  # 0 free, 1 margin, 2 deep
+    deep = ndimage.binary_erosion(raw, grow)
+    i, j, k = idx[inside].T
+    cell[inside] = np.where(deep[i, j, k], 2, np.where(blocked[i, j, k], 1, 0))
+    near = pts[base][cell == 1]
     near = near[~hulls.intersects(near, near, margin)] if len(near) else near
-    free = np.concatenate([pts[base][~in_blocked], near])
+    free = np.concatenate([pts[base][cell == 0], near])
     index[base] = PointIndex(grid, free)
     first = _voxel_boxes(occ[base] & ~blocked, blocked, grid, CellBounds(grid, free), params)
     recovered = []

@@ -153,11 +153,22 @@ def eval_gen(
         raise typer.Exit(1)
 
 
-def _build_one(bundle: Path, height: float | None, validate: bool, repair: bool) -> tuple[str, str]:
-    """Build (and validate) one bundle; return (status, detail)."""
-    from asset_pipeline.build import build_asset
+#: --collision values -> asset_pipeline.build collision methods.
+COLLISION_OPTIONS = {"auto": "auto", "mesh": "voxel", "voxel": "voxel", "coacd": "coacd"}
 
-    result = build_asset(bundle, height=height)
+
+def check_collision(value: str) -> None:
+    if value not in COLLISION_OPTIONS:
+        raise fail(f"--collision {value!r}: choose one of {', '.join(COLLISION_OPTIONS)}")
+
+
+def _build_one(
+    bundle: Path, height: float | None, validate: bool, repair: bool, collision: str
+) -> tuple[str, str]:
+    """Build (and validate) one bundle; return (status, detail)."""
+    from asset_pipeline.build import BuildOptions, build_asset
+
+    result = build_asset(bundle, height=height, options=BuildOptions(collision=collision))
     detail = f"{sum(result.pieces.values())} pieces, {result.seconds:.1f} s"
     if not validate:
         return "built", detail
@@ -177,6 +188,11 @@ def build(
     height: float = typer.Option(None, help="Metric height (m) for bundles without a scale."),
     validate: bool = typer.Option(True, "--validate/--no-validate", help="Validate in SAPIEN."),
     repair: bool = typer.Option(True, "--repair/--no-repair", help="Repair what validation finds."),
+    collision: str = typer.Option(
+        "auto",
+        help="auto (a part's primitives, else articulation-aware boxes from its mesh), mesh "
+        "(boxes from every part's mesh) or coacd (each part decomposed alone).",
+    ),
 ) -> None:
     """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, asset.json.
 
@@ -184,6 +200,7 @@ def build(
     """
     from generator.articulated import ObjectModelError, find_bundles
 
+    check_collision(collision)
     bundles: list[Path] = []
     bad: list[tuple[str, str]] = []
     for p in paths:
@@ -200,7 +217,9 @@ def build(
         table.add_column(col)
     for b in bundles:
         try:
-            status, detail = _build_one(b, height, validate, repair)
+            status, detail = _build_one(
+                b, height, validate, repair, COLLISION_OPTIONS.get(collision, collision)
+            )
         except Exception as e:  # one bad bundle never stops the batch
             logging.getLogger("pact.build").debug("build of %s failed", b, exc_info=True)
             status, detail = "failed", f"{type(e).__name__}: {e}"
@@ -380,6 +399,11 @@ def convert(
     log_json: Path = typer.Option(
         None, help="Append one JSON line per item to this file ('-' = stdout)."
     ),
+    collision: str = typer.Option(
+        "auto",
+        help="auto (a generated object's box layout), mesh (articulation-aware boxes cut "
+        "from the generated part meshes) or coacd.",
+    ),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -396,7 +420,13 @@ def convert(
     from asset_pipeline.catalog import CatalogError
     from asset_pipeline.inputs import InputError
 
-    settings = ConvertSettings(generator=generator, validate=validate, preview=preview)
+    check_collision(collision)
+    settings = ConvertSettings(
+        generator=generator,
+        validate=validate,
+        preview=preview,
+        collision=COLLISION_OPTIONS.get(collision, collision),
+    )
     log_file = None
     if log_json is not None and str(log_json) != "-":
         try:
