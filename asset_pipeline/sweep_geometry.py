@@ -13,6 +13,7 @@ exact for convex sets, vectorized over many boxes. Units: metres.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,6 +92,14 @@ class HullSet:
 
     def add_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         self.add(box_corners(lo, hi))
+
+    @classmethod
+    def union(cls, sets: Iterable[HullSet]) -> HullSet:
+        """A set of every hull of ``sets``."""
+        out = cls()
+        for s in sets:
+            out.hulls.extend(s.hulls)
+        return out
 
     def _stack(self) -> tuple[np.ndarray, ...]:
         if self._stacked is None:

@@ -51,7 +51,7 @@ from .sweep_geometry import HullSet, swept_hulls
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 7
+CACHE_VERSION = 9
 #: Past the time-out the pitch doubles; at this multiple it runs to the end whatever
 #: it takes (a coarse but valid, sweep-free decomposition).
 FALLBACK_SCALE = 8.0
@@ -428,6 +428,39 @@ def _tight(lo: np.ndarray, hi: np.ndarray, index: PointIndex, min_thickness: flo
     )
 
 
+def shrink_clear(
+    box: np.ndarray, forbidden: HullSet, margin: float, max_loss: float = 0.5, steps: int = 10
+) -> np.ndarray | None:
+    """``box`` (2, 3) with one side moved in just enough to clear ``forbidden`` (to within
+    ``max_loss`` of its extent / 2**steps), the side losing the least volume; None when
+    no single side clears it within ``max_loss``."""
+    ext = box[1] - box[0]
+    best, best_loss = None, math.inf
+    for k in range(3):
+        for side in (0, 1):
+
+            def moved(d: float, k: int = k, side: int = side) -> np.ndarray:
+                out = box.copy()
+                out[side, k] += d if side == 0 else -d
+                return out
+
+            far = moved(max_loss * ext[k])
+            if forbidden.intersects(far[0], far[1], margin)[0]:
+                continue
+            lo_d, hi_d = 0.0, max_loss * ext[k]
+            for _ in range(steps):
+                mid = 0.5 * (lo_d + hi_d)
+                m = moved(mid)
+                if forbidden.intersects(m[0], m[1], margin)[0]:
+                    lo_d = mid
+                else:
+                    hi_d = mid
+            loss = hi_d / max(ext[k], 1e-12)
+            if loss < best_loss:
+                best, best_loss = moved(hi_d), loss
+    return best
+
+
 def refine_boxes(
     boxes: list[np.ndarray],
     index: PointIndex,
@@ -435,9 +468,11 @@ def refine_boxes(
     margin: float,
     min_size: float,
 ) -> list[np.ndarray]:
-    """Boxes ((2, 3) bounds) kept off ``forbidden`` (with ``margin``): a box that meets it
-    is halved across its longest side, each half tightened to its points, until the
-    halves are clear or no longer than ``min_size`` (then dropped)."""
+    """Boxes ((2, 3) bounds) kept off ``forbidden`` (with ``margin``). A box that meets it
+    loses a slab from one side when that clears it for at most half its extent (the
+    side that costs the least volume: two drawers stacked face to face part by a
+    margin); else it is halved across its longest side, each half tightened to its
+    points, until the halves are clear or no longer than ``min_size`` (then dropped)."""
     out: list[np.ndarray] = []
     todo = [np.asarray(b, dtype=np.float64) for b in boxes]
     while todo:
@@ -446,6 +481,12 @@ def refine_boxes(
         out += [b for b, h in zip(todo, hit, strict=True) if not h]
         todo = []
         for b in arr[hit]:
+            trimmed = shrink_clear(b, forbidden, margin)
+            if trimmed is not None:
+                t = _tight(trimmed[0], trimmed[1], index, 0.0)
+                if t is not None:
+                    out.append(np.stack(t))
+                continue
             ext = b[1] - b[0]
             k = int(np.argmax(ext))
             if ext[k] <= min_size:
@@ -469,12 +510,15 @@ def merge_exact(
     max_boxes: int,
     min_thickness: float,
     pitch: float,
+    within: np.ndarray | None = None,
 ) -> list[np.ndarray]:
     """Merge neighbouring boxes ((2, 3) bounds) into their bounding box while it stays
     off ``forbidden`` and within ``1 + slack`` of the two volumes (slack relaxed while more
     than ``max_boxes`` remain, :func:`_slacks`); the results are tightened to their points.
     Volumes count every side as at least ``pitch`` long, so thin boxes a fraction of a
-    voxel apart merge as voxels would."""
+    voxel apart merge as voxels would. ``within`` (K, 2, 3): a merged box must lie in one
+    of these boxes, and thin boxes grow only inside them (a part never outgrows the
+    envelope its sweep was computed from)."""
     arr = np.array(boxes, dtype=np.float64).reshape(-1, 2, 3)
     alive = np.ones(len(arr), bool)
     touch_gap = max(2 * min_thickness, pitch)
@@ -504,6 +548,8 @@ def merge_exact(
             uhi = np.maximum(arr[cand, 1], hi)
             uvol = volume(ulo, uhi)
             ok = uvol <= (1.0 + limit) * (vol[i] + vol[cand])
+            if within is not None:
+                ok &= inside_any(ulo, uhi, within)
             if not ok.any():
                 continue
             ok[ok] = ~forbidden.intersects(ulo[ok], uhi[ok], margin)
@@ -525,13 +571,34 @@ def merge_exact(
     for lo, hi in arr:
         t = _tight(lo, hi, index, 0.0)
         if t is not None:
-            out.append(thicken(t[0], t[1], min_thickness, forbidden, margin))
+            box = thicken(t[0], t[1], min_thickness, forbidden, margin)
+            if within is not None:
+                box = clip_to_envelope(box, np.stack(t), within)
+            out.append(box)
     return out
 
 
 #: Thickness (m) of a box squeezed between a surface and a sweep: thin enough for a
 #: 1 mm play, thick enough for PhysX to cook (validation wants 0.1 mm).
 SQUEEZED_THICKNESS = 0.0003
+
+
+def inside_any(lo: np.ndarray, hi: np.ndarray, within: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """(N,) True where box [lo[i], hi[i]] lies inside one of ``within`` (K, 2, 3)."""
+    return np.any(
+        np.all(lo[:, None] >= within[None, :, 0] - eps, axis=2)
+        & np.all(hi[:, None] <= within[None, :, 1] + eps, axis=2),
+        axis=1,
+    )
+
+
+def clip_to_envelope(box: np.ndarray, core: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """``box`` (2, 3) clipped to the first of ``within`` that holds ``core`` (its box
+    before thickening); unchanged when none does."""
+    for env in within:
+        if np.all(core[0] >= env[0] - 1e-9) and np.all(core[1] <= env[1] + 1e-9):
+            return np.stack([np.maximum(box[0], env[0]), np.minimum(box[1], env[1])])
+    return box
 
 
 def thicken(
@@ -609,13 +676,17 @@ def envelopes(boxes: list[np.ndarray], k: int) -> list[np.ndarray]:
     return out
 
 
-def _overlap(a: list[np.ndarray], b: list[np.ndarray], tol: float) -> bool:
-    """True when a box of ``a`` and a box of ``b`` overlap by more than ``tol`` on every axis."""
-    if not a or not b:
-        return False
-    A, B = np.array(a), np.array(b)
-    depth = np.minimum(A[:, None, 1], B[None, :, 1]) - np.maximum(A[:, None, 0], B[None, :, 0])
-    return bool(np.all(depth > tol, axis=2).any())
+def shrink_envelopes(envelopes_: list[np.ndarray], boxes: list[np.ndarray]) -> list[np.ndarray]:
+    """Each envelope shrunk to the bounding box of the ``boxes`` that lie in it (empty
+    ones dropped): never larger than before, so a sweep of them never grows."""
+    env = np.array(envelopes_)
+    out = []
+    arr = np.array(boxes).reshape(-1, 2, 3)
+    for e in env:
+        mine = arr[inside_any(arr[:, 0], arr[:, 1], e[None])] if len(arr) else arr
+        if len(mine):
+            out.append(np.stack([mine[:, 0].min(axis=0), mine[:, 1].max(axis=0)]))
+    return out
 
 
 def _decompose(
@@ -643,25 +714,33 @@ def _decompose(
         )
         index[p.name] = PointIndex(grid, pts[p.name])
         _check(deadline)
-    # 2. two movable parts whose meshes interpenetrate at rest: the smaller one yields
-    for a in movable:
-        for b in movable:
-            if a.name < b.name and _overlap(boxes[a.name], boxes[b.name], params.min_thickness):
-                small, big = (a, b) if occ[a.name].sum() <= occ[b.name].sum() else (b, a)
-                other = HullSet()
-                for box in boxes[big.name]:
-                    other.add_box(box[0], box[1])
-                refined = refine_boxes(boxes[small.name], index[small.name], other, 0.0, min_size)
-                boxes[small.name] = merge_exact(
-                    refined, index[small.name], other, 0.0, params.merge_slack,
-                    params.max_pieces, params.min_thickness, grid.pitch,
-                )  # fmt: skip
-    # 3. the space each movable part needs: exact hulls, and voxels for a coarse first cut
-    hulls = HullSet()
+    # 2. the space each movable part needs: its boxes' envelopes swept, as exact hulls
+    envelope: dict[str, list[np.ndarray]] = {}
+    sweeps: dict[str, HullSet] = {}
+    for p in movable:
+        envelope[p.name] = envelopes(boxes[p.name], SWEEP_ENVELOPES)
+        sweeps[p.name] = HullSet()
+        swept_hulls(p.joint, envelope[p.name], sweeps[p.name])  # type: ignore[arg-type]
+    # 3. every movable part stays off the others' sweeps (a drawer resting on the next
+    # one parts from it by the margin; a door's edge clears its twin's swing), and
+    # inside its own envelopes, so that its own sweep only shrinks
+    for p in movable:
+        others = HullSet.union(sweeps[q.name] for q in movable if q is not p)
+        if len(others):
+            kept = refine_boxes(boxes[p.name], index[p.name], others, margin, min_size)
+            boxes[p.name] = merge_exact(
+                kept, index[p.name], others, margin, params.merge_slack, params.max_pieces,
+                params.min_thickness, grid.pitch, within=np.array(envelope[p.name]),
+            )  # fmt: skip
+        _check(deadline)
+    for p in movable:
+        sweeps[p.name] = HullSet()
+        tight = shrink_envelopes(envelope[p.name], boxes[p.name])
+        swept_hulls(p.joint, tight, sweeps[p.name])  # type: ignore[arg-type]
+    hulls = HullSet.union(sweeps.values())
     grow = ndimage.generate_binary_structure(3, 3)
     raw = np.zeros(grid.shape, bool)
     for p in movable:
-        swept_hulls(p.joint, envelopes(boxes[p.name], SWEEP_ENVELOPES), hulls)  # type: ignore[arg-type]
         raw |= swept_occupancy(p, occ[p.name], grid)
         _check(deadline)
     blocked = ndimage.binary_dilation(raw, grow, iterations=max(1, params.clearance))

@@ -48,6 +48,9 @@ class Tolerances:
     hull_min_thickness: float = 1e-4
     #: Largest distance (m) of a revolute hinge line from its part's AABB surface.
     hinge_offset: float = 0.02
+    #: ... or this fraction of the part's largest extent, if more (a real 1.2 m fridge
+    #: door hangs on hinges set 3 cm into the cabinet).
+    hinge_offset_relative: float = 0.05
     limit_match: float = 1e-4
     sweep_steps: int = 10
     #: Deepest allowed overlap (m) between two parts.

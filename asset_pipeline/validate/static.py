@@ -246,14 +246,15 @@ def _hinge_check(j: Joint, pieces: list[np.ndarray], tol: Tolerances) -> Check:
     allv = np.concatenate([v for v in pieces if len(v)])
     lo, hi = allv.min(0), allv.max(0)
     d, target = hinge_offset(j.unit_axis, lo, hi)
-    ok = d <= tol.hinge_offset
+    limit = max(tol.hinge_offset, tol.hinge_offset_relative * float(np.max(hi - lo)))
+    ok = d <= limit
     return Check(
         "hinge_on_part",
         "static",
         j.name,
         ok,
         value=d,
-        tolerance=tol.hinge_offset,
+        tolerance=limit,
         message="" if ok else f"hinge line is {d:.3f} m from the part's bounding box surface",
         details={"target_link": target.tolist(), "aabb": [lo.tolist(), hi.tolist()]},
     )
