@@ -191,6 +191,9 @@ class PartnetOptions:
     min_prismatic_frac: float = 0.02  # of the object's largest extent
     min_part_frac: float = 0.03  # of the object's largest extent (part bounding-box diagonal)
     jpeg_quality: int = 90
+    #: Import an object with no door, drawer or lid as one static body (else it fails:
+    #: nothing to articulate).
+    keep_static: bool = False
 
     def __post_init__(self) -> None:
         if self.height is not None and not (math.isfinite(self.height) and 0 < self.height <= 10):
@@ -1264,6 +1267,12 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
         closed_values[name] = k.closed
 
     if not kept:
+        if not opts.keep_static:
+            raise PartnetFormatError(
+                f"{folder / 'mobility.urdf'}: nothing to articulate: no door, drawer or lid "
+                "(only a body, or knobs, wheels, racks: merged); keep_static imports it as one "
+                "static body"
+            )
         warnings.append("no door, drawer or lid: imported as one static body")
     for w in warnings:
         log.warning("%s: %s", folder, w)

@@ -139,6 +139,14 @@ class PhysicsDefaults:
     min_mass: float = 0.05
     #: Joint damping is capped at (inertia about the joint) / this (s): see the docstring.
     min_damping_time: float = 0.01
+    #: A door on a horizontal hinge gets at least this times its largest gravity lever
+    #: (m) over its first ``hold_window`` radians as friction, so that a touch does not
+    #: swing it open (see :func:`gravity_lever`); a wider window would need a friction
+    #: that a hand's pull could not beat (SAPIEN's friction grows with the pull).
+    hold_safety: float = 1.5
+    hold_window: float = 0.2
+    #: ... but no more friction than this.
+    max_hold_friction: float = 1.0
 
     def material(self, material: str) -> MaterialModel:
         """The :class:`MaterialModel` of ``material`` (the default material's if unknown)."""
@@ -317,6 +325,22 @@ def joint_inertia(mp: MassProperties, joint_type: str, axis: np.ndarray) -> floa
     return float(axis @ mp.inertia @ axis + mp.mass * (off @ off))
 
 
+def gravity_lever(com: np.ndarray, axis: np.ndarray, lower: float, upper: float) -> float:
+    """Largest lever (m) of gravity about a hinge over its range: ``|a . (r x -z)|`` with
+    ``r`` the centre of mass (3,) relative to a point on the hinge (link frame), turned
+    to 17 angles from ``lower`` to ``upper``. Zero for a vertical hinge.
+
+    SAPIEN scales joint friction by the joint's load (about the part's weight: see the
+    module docstring), so a friction of about this lever holds the part at any angle.
+    """
+    levers = []
+    for q in np.linspace(lower, upper, 17):
+        R = trimesh.transformations.rotation_matrix(float(q), axis)[:3, :3]
+        r = R @ com
+        levers.append(abs(float(axis @ np.cross(r, [0.0, 0.0, -1.0]))))
+    return max(levers)
+
+
 def part_solid(part: Part) -> trimesh.Trimesh:
     """The solid a part's mass comes from: its primitives when it has them (a procedural
     part's exact solids, or a generated part's layout box: what the simulator collides
@@ -428,6 +452,13 @@ def build_rig(
         cap = joint_inertia(mp, j.type, axis) / physics.min_damping_time
         if joint_physics.damping > cap:  # a small part: its damping time >= the floor
             joint_physics = replace(joint_physics, damping=cap)
+        if j.type == "revolute":
+            lever = gravity_lever(
+                mp.com, axis, j.lower, min(j.upper, j.lower + physics.hold_window)
+            )
+            hold = min(physics.max_hold_friction, physics.hold_safety * lever)
+            if hold > joint_physics.friction:  # a bottom-hinged door, a lid
+                joint_physics = replace(joint_physics, friction=hold)
         pivot = np.eye(4)
         pivot[:3, 3] = origin - link_origin(obj, j.parent)
         joints.append(

@@ -162,7 +162,9 @@ def test_up_without_root_rotation_and_default_front(tmp_path: Path) -> None:
     assert any("no rotation on the URDF root chain" in w for w in obj.provenance["warnings"])
     assert np.allclose(obj.bounds(), ref.bounds(), atol=1e-6)
     body = write_partnet(tmp_path / "body", [LinkSpec("furniture_body", "heavy", cabinet_body())])
-    static = convert_object(body)
+    with pytest.raises(PartnetFormatError, match="nothing to articulate"):
+        convert_object(body)
+    static = convert_object(body, PartnetOptions(keep_static=True))
     assert [p.name for p in static.parts] == ["base"]
     assert static.provenance["frame"] == {
         "rotation": [[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]],
@@ -204,7 +206,7 @@ def test_joint_frozen_in_the_urdf_is_restored_from_mobility_v2(tmp_path: Path) -
         assert p.joint.type == "revolute" and p.joint.upper == pytest.approx(o.joint.upper)
         assert line_distance(back(p.joint.origin), o.joint.origin, o.joint.axis) < 1e-4
     assert sorted(obj.provenance["restored_joints"]) == ["link_0", "link_1"]
-    off = convert_object(folder, PartnetOptions(restore_fixed=False))
+    off = convert_object(folder, PartnetOptions(restore_fixed=False, keep_static=True))
     assert [p.name for p in off.parts] == ["base"]
 
 
@@ -301,7 +303,8 @@ def test_tiny_and_unknown_movable_parts_are_merged(tmp_path: Path) -> None:
         JointSpec("revolute", np.array([0.15, 0, 0.02]), np.array([0, 1.0, 0]), 0.0, 6.0),
     )
     obj = convert_object(
-        write_partnet(tmp_path / "o", [LinkSpec("furniture_body", "heavy", body), tiny, wheel])
+        write_partnet(tmp_path / "o", [LinkSpec("furniture_body", "heavy", body), tiny, wheel]),
+        PartnetOptions(keep_static=True),
     )
     assert [p.name for p in obj.parts] == ["base"]
     assert any("tiny range" in w for w in obj.provenance["warnings"])
@@ -374,15 +377,18 @@ def test_category_mapping_and_override(tmp_path: Path) -> None:
         ("WashingMachine", "washing_machine"),
         ("Chair", "unknown"),
     ]:
-        obj = convert_object(write_partnet(tmp_path / cat, links, model_cat=cat))
+        obj = convert_object(
+            write_partnet(tmp_path / cat, links, model_cat=cat), PartnetOptions(keep_static=True)
+        )
         assert obj.category == want, cat
         assert obj.base.material == (
             "metal" if want not in ("cabinet", "desk", "unknown") else "wood"
         )
-    obj = convert_object(tmp_path / "Table", PartnetOptions(category="cabinet"))
+    static = PartnetOptions(keep_static=True)
+    obj = convert_object(tmp_path / "Table", PartnetOptions(category="cabinet", keep_static=True))
     assert obj.category == "cabinet"
     (tmp_path / "Table" / "meta.json").unlink()
-    obj = convert_object(tmp_path / "Table")
+    obj = convert_object(tmp_path / "Table", static)
     assert obj.category == "unknown" and "meta.json missing" in obj.provenance["warnings"]
 
 
@@ -465,7 +471,7 @@ def test_errors_name_the_file(tmp_path: Path) -> None:
         find_sources(_empty(tmp_path))
     # without semantics.txt and mobility_v2.json the v2-less link names are still enough
     (folder / "mobility.urdf").write_text(urdf)
-    obj = convert_object(folder)
+    obj = convert_object(folder, PartnetOptions(keep_static=True))
     assert "semantics.txt missing" in obj.provenance["warnings"]
 
 

@@ -150,6 +150,8 @@ def dynamic_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptions) -> l
                 details={"gains": gains[n], "q": reached_q},
             )
         )
+    # --- a touch and a pull, as a hand would give them
+    checks += _touch_and_pull_checks(asset, tol, options)
     # --- free base on the floor
     checks.append(_free_base_check(asset, tol, options))
     checks.append(
@@ -164,6 +166,124 @@ def dynamic_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptions) -> l
         )
     )
     return checks
+
+
+def _opening_direction(asset: BuiltAsset, joint_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The handle point (3,) of a movable part at rest (object frame) and the unit
+    direction (3,) it moves in when the part starts to open."""
+    j = asset.joint(joint_name)
+    part = next(p for p in asset.movable_parts() if p.joint_name == joint_name)
+    point = np.asarray(part.handle_object)
+    axis = np.asarray(part.axis)
+    if j.type == "prismatic":
+        return point, axis
+    tangent = np.cross(axis, point - np.asarray(part.origin))
+    n = float(np.linalg.norm(tangent))
+    return point, (tangent / n if n > 1e-9 else axis)
+
+
+def _touch_and_pull_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptions) -> list[Check]:
+    """``touch_hold``: nudged open a little (``touch`` of the range, base fixed, no
+    drive) a part stays where it was put; ``handle_pull``: pulled at its handle by
+    ``pull_force`` newtons along its opening direction, it opens ``pull_fraction`` of its
+    range within ``pull_time``. Together: a door neither swings open at a touch nor
+    jams. Parts without a handle (an asset made elsewhere) get the pull at the centre
+    of their front face as built (asset.json's handle is what the tasks use)."""
+    import sapien
+
+    checks: list[Check] = []
+    dt = options.timestep
+    with_handle = {p.joint_name for p in asset.movable_parts()} if asset.handles else set()
+    for js in asset.movable_joints:
+        rng = js.upper - js.lower
+        lin = js.type == "prismatic"
+        # touch
+        scene = physics_scene(options)
+        art = load_articulation(scene, asset, options, visuals=False, fix_root=True)
+        art.set_sleep_threshold(0.0)
+        names = [j.name for j in art.get_active_joints()]
+        spec_of = {j.name: j for j in asset.movable_joints}
+        q = np.array([spec_of[n].lower for n in names], dtype=np.float32)
+        i = names.index(js.name)
+        nudge = min(tol.touch * rng, tol.touch_max_linear if lin else tol.touch_max_angular)
+        q[i] += nudge
+        art.set_qpos(q)
+        art.set_qvel(np.zeros(len(names), dtype=np.float32))
+        for _ in range(round(tol.settle_time / dt)):
+            scene.step()
+        moved = abs(float(art.get_qpos()[i]) - float(q[i]))
+        limit = tol.drift_linear if lin else tol.drift_angular
+        ok = bool(np.isfinite(moved) and moved <= limit)
+        checks.append(
+            Check(
+                "touch_hold",
+                "dynamic",
+                js.name,
+                ok,
+                value=moved,
+                tolerance=limit,
+                message=""
+                if ok
+                else f"nudged {nudge:.3f} {'m' if lin else 'rad'} open it moves on by {moved:.3f} "
+                f"in {tol.settle_time:g} s (too little friction to stay put)",
+                details={"nudge": nudge, "friction": js.physics.friction},
+            )
+        )
+        if js.name not in with_handle:
+            continue
+        # pull at the handle
+        scene = physics_scene(options)
+        art = load_articulation(scene, asset, options, visuals=False, fix_root=True)
+        art.set_sleep_threshold(0.0)
+        art.set_qpos(np.array([spec_of[n].lower for n in names], dtype=np.float32))
+        art.set_qvel(np.zeros(len(names), dtype=np.float32))
+        link = next(k for k in art.links if k.name == js.child)
+        point, direction = _opening_direction(asset, js.name)
+        local = np.asarray(link.entity_pose.inv().to_transformation_matrix()) @ np.append(
+            point, 1.0
+        )
+        best = 0.0
+        for _ in range(round(tol.pull_time / dt)):
+            T = np.asarray(link.entity_pose.to_transformation_matrix())
+            p_world = T[:3, :3] @ local[:3] + T[:3, 3]
+            # the pull follows the part: along the current opening direction
+            qi = float(art.get_qpos()[i]) - js.lower
+            d = direction
+            if js.type != "prismatic":
+                axis = np.asarray(
+                    next(p for p in asset.movable_parts() if p.joint_name == js.name).axis
+                )
+                R = sapien.Pose(q=_axis_angle_quat(axis, qi)).to_transformation_matrix()[:3, :3]
+                d = np.asarray(R) @ direction
+            link.add_force_at_point(tol.pull_force * d, p_world)
+            scene.step()
+            best = max(best, (float(art.get_qpos()[i]) - js.lower) / rng)
+        ok = bool(np.isfinite(best) and best >= tol.pull_fraction)
+        checks.append(
+            Check(
+                "handle_pull",
+                "dynamic",
+                js.name,
+                ok,
+                value=best,
+                tolerance=tol.pull_fraction,
+                message=""
+                if ok
+                else f"pulled at its handle with {tol.pull_force:g} N it opens {best:.0%} of its "
+                f"range in {tol.pull_time:g} s (jammed, too heavy or too much friction)",
+                details={"force": tol.pull_force, "point": point.tolist()},
+            )
+        )
+    return checks
+
+
+def _axis_angle_quat(axis: np.ndarray, angle: float) -> np.ndarray:
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    return np.array([math.cos(angle / 2), *(math.sin(angle / 2) * a)])
+
+
+#: Natural frequency (Hz) of the drives that hold the parts closed in the free-base check.
+FREE_BASE_HOLD_HZ = 5.0
 
 
 def _free_base_check(asset: BuiltAsset, tol: Tolerances, options: SimOptions) -> Check:
@@ -184,6 +304,13 @@ def _free_base_check(asset: BuiltAsset, tol: Tolerances, options: SimOptions) ->
     names = [j.name for j in art.get_active_joints()]
     spec_of = {j.name: j for j in asset.movable_joints}
     art.set_qpos(np.array([spec_of[n].lower for n in names], dtype=np.float32))
+    # the parts are held closed, as latches, springs and magnets hold real ones (PhysX's
+    # joint friction holds nothing on a floating base): this check is about the base
+    for joint in art.get_active_joints():
+        m = max(float(joint.child_link.mass), 1e-3)
+        w = 2 * math.pi * FREE_BASE_HOLD_HZ
+        joint.set_drive_properties(m * w * w, 2 * m * w, 3.4e38, "force")
+        joint.set_drive_target(float(spec_of[joint.name].lower))
     for _ in range(round(tol.free_time / options.timestep)):
         scene.step()
     T = np.asarray(art.get_root_pose().to_transformation_matrix())

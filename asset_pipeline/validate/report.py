@@ -72,6 +72,15 @@ class Tolerances:
     drive_error: float = 0.05
     #: Natural frequency (Hz) of the PD test drive (critically damped).
     drive_frequency: float = 1.5
+    #: A touch opens a part this fraction of its range (at most 3 degrees or 1 cm) ...
+    touch: float = 0.02
+    touch_max_angular: float = math.radians(3.0)
+    touch_max_linear: float = 0.01
+    #: ... and a pull of this many newtons at its handle opens it at least this fraction
+    #: of its range within this many seconds.
+    pull_force: float = 40.0
+    pull_fraction: float = 0.3
+    pull_time: float = 2.0
     free_time: float = 1.5
     free_tilt: float = math.radians(2.0)
     free_displacement: float = 0.01
