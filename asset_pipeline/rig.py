@@ -326,18 +326,19 @@ def joint_inertia(mp: MassProperties, joint_type: str, axis: np.ndarray) -> floa
 
 
 def gravity_lever(com: np.ndarray, axis: np.ndarray, lower: float, upper: float) -> float:
-    """Largest lever (m) of gravity about a hinge over its range: ``|a . (r x -z)|`` with
-    ``r`` the centre of mass (3,) relative to a point on the hinge (link frame), turned
-    to 17 angles from ``lower`` to ``upper``. Zero for a vertical hinge.
+    """Largest lever (m) with which gravity opens a part about its hinge: the largest
+    ``a . (r x -z)`` (positive: toward opening, as positive joint values open) with ``r``
+    the centre of mass (3,) relative to a point on the hinge (link frame at ``lower``),
+    turned to 17 angles from ``lower`` to ``upper``. Zero for a vertical hinge and for a
+    lid that gravity pulls shut.
 
     SAPIEN scales joint friction by the joint's load (about the part's weight: see the
-    module docstring), so a friction of about this lever holds the part at any angle.
+    module docstring), so a friction of about this lever holds the part open that far.
     """
-    levers = []
+    levers = [0.0]
     for q in np.linspace(lower, upper, 17):
-        R = trimesh.transformations.rotation_matrix(float(q), axis)[:3, :3]
-        r = R @ com
-        levers.append(abs(float(axis @ np.cross(r, [0.0, 0.0, -1.0]))))
+        R = trimesh.transformations.rotation_matrix(float(q) - lower, axis)[:3, :3]
+        levers.append(float(axis @ np.cross(R @ com, [0.0, 0.0, -1.0])))
     return max(levers)
 
 

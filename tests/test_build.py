@@ -121,7 +121,7 @@ def normalized_cabinet() -> ArticulatedObject:
 def built(tmp_path_factory):
     root = tmp_path_factory.mktemp("assets")
     bundle = save_bundle(normalized_cabinet(), root / "cab_test")
-    opts = BuildOptions(cache_dir=root / "coacd-cache")
+    opts = BuildOptions(cache_dir=root / "coacd-cache", collision="coacd")  # CoACD is tested here
     t0 = time.perf_counter()
     result = build_asset(bundle, height=H, options=opts)
     first = time.perf_counter() - t0

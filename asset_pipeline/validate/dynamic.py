@@ -211,7 +211,8 @@ def _touch_and_pull_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptio
         art.set_qvel(np.zeros(len(names), dtype=np.float32))
         for _ in range(round(tol.settle_time / dt)):
             scene.step()
-        moved = abs(float(art.get_qpos()[i]) - float(q[i]))
+        # falling back shut (a lid) is fine: only further opening counts
+        moved = max(0.0, float(art.get_qpos()[i]) - float(q[i]))
         limit = tol.drift_linear if lin else tol.drift_angular
         ok = bool(np.isfinite(moved) and moved <= limit)
         checks.append(
@@ -224,7 +225,7 @@ def _touch_and_pull_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptio
                 tolerance=limit,
                 message=""
                 if ok
-                else f"nudged {nudge:.3f} {'m' if lin else 'rad'} open it moves on by {moved:.3f} "
+                else f"nudged {nudge:.3f} {'m' if lin else 'rad'} open it opens {moved:.3f} further "
                 f"in {tol.settle_time:g} s (too little friction to stay put)",
                 details={"nudge": nudge, "friction": js.physics.friction},
             )
