@@ -284,16 +284,17 @@ def resolve_inside(folder: Path, filename: str) -> Path | str:
     return folder / rel
 
 
-def read_urdf(path: Path) -> tuple[str, list[Link], list[Joint]]:
-    """(robot name, links, joints) of a URDF; raises :class:`AssetFormatError`.
+def parse_robot(path: Path, missing: str = "URDF not found") -> Any:
+    """The ``yourdfpy.Robot`` of a URDF file: the project's one URDF reader.
 
-    Mesh file names are checked to stay inside the URDF's folder and kept relative
-    (``package://`` stripped).
+    Raises :class:`AssetFormatError` naming the file and every problem: not XML, not a
+    ``<robot>``, a nameless link, a joint without parent or child, a NaN or infinite
+    number anywhere (by element and attribute), or whatever yourdfpy refuses.
     """
     import yourdfpy
 
     if not path.is_file():
-        raise AssetFormatError(path, ["URDF not found (run `pact build` first)"])
+        raise AssetFormatError(path, [missing])
     try:
         root = etree.parse(str(path), etree.XMLParser(resolve_entities=False)).getroot()
     except (etree.XMLSyntaxError, OSError) as e:
@@ -306,9 +307,19 @@ def read_urdf(path: Path) -> tuple[str, list[Link], list[Joint]]:
     if problems:
         raise AssetFormatError(path, problems)
     try:
-        robot = yourdfpy.URDF._parse_robot(xml_element=root)
+        return yourdfpy.URDF._parse_robot(xml_element=root)
     except Exception as e:  # noqa: BLE001 - yourdfpy raises many types on malformed input
         raise AssetFormatError(path, [f"malformed URDF: {type(e).__name__}: {e}"]) from e
+
+
+def read_urdf(path: Path) -> tuple[str, list[Link], list[Joint]]:
+    """(robot name, links, joints) of a built asset's URDF; raises :class:`AssetFormatError`.
+
+    Mesh file names are checked to stay inside the URDF's folder and kept relative
+    (``package://`` stripped).
+    """
+    robot = parse_robot(path, "URDF not found (run `pact build` first)")
+    problems: list[str] = []
     folder = path.parent
     links = []
     for lk in robot.links:

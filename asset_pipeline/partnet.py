@@ -133,7 +133,6 @@ import os
 import re
 import shutil
 import time
-import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -145,6 +144,7 @@ import trimesh.transformations as tf
 from PIL import Image
 from trimesh.path import packing
 
+from asset_pipeline.asset_io import AssetFormatError, parse_robot
 from asset_pipeline.importers import CATEGORY_MAP, ImportFormatError, _sanitize_id
 from generator.articulated import (
     BASE,
@@ -305,30 +305,6 @@ class _Urdf:
         return sorted(c for c, j in self.joints.items() if j.parent == link)
 
 
-def _floats(
-    text: str | None, n: int, default: Sequence[float], where: str, src: Path
-) -> np.ndarray:
-    if text is None:
-        return np.asarray(default, dtype=float)
-    try:
-        v = np.array([float(x) for x in text.split()], dtype=float)
-    except ValueError as e:
-        raise PartnetFormatError(f"{src}: {where}: expected {n} numbers, got {text!r}") from e
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise PartnetFormatError(f"{src}: {where}: expected {n} finite numbers, got {text!r}")
-    return v
-
-
-def _origin(el: ET.Element | None, where: str, src: Path) -> np.ndarray:
-    if el is None:
-        return np.eye(4)
-    xyz = _floats(el.get("xyz"), 3, (0, 0, 0), f"{where} <origin xyz>", src)
-    rpy = _floats(el.get("rpy"), 3, (0, 0, 0), f"{where} <origin rpy>", src)
-    T = tf.euler_matrix(*rpy, axes="sxyz")
-    T[:3, 3] = xyz
-    return T
-
-
 def _mesh_path(folder: Path, filename: str, where: str, src: Path) -> Path:
     name = filename.strip()
     if name.startswith("package://"):
@@ -346,115 +322,82 @@ def _mesh_path(folder: Path, filename: str, where: str, src: Path) -> Path:
 
 
 def _geometry(
-    vis: ET.Element, folder: Path, where: str, src: Path
+    geometry: Any, folder: Path, where: str, src: Path
 ) -> tuple[Path | None, trimesh.Trimesh | None, np.ndarray]:
-    geom = vis.find("geometry")
-    if geom is None or len(geom) == 0:
+    """(mesh file, primitive mesh, scale) of a yourdfpy ``Geometry``."""
+    if geometry is None:
         raise PartnetFormatError(f"{src}: {where}: <geometry> missing or empty")
-    g = geom[0]
-    if g.tag == "mesh":
-        fn = g.get("filename")
-        if not fn:
-            raise PartnetFormatError(f"{src}: {where}: <mesh> has no filename")
-        scale = _floats(g.get("scale"), 3, (1, 1, 1), f"{where} <mesh scale>", src)
-        return _mesh_path(folder, fn, where, src), None, scale
-    try:
-        if g.tag == "box":
-            prim = trimesh.creation.box(extents=_floats(g.get("size"), 3, (0, 0, 0), where, src))
-        elif g.tag == "cylinder":
-            prim = trimesh.creation.cylinder(
-                radius=float(g.get("radius", "0")), height=float(g.get("length", "0"))
-            )
-        elif g.tag == "sphere":
-            prim = trimesh.creation.icosphere(radius=float(g.get("radius", "0")), subdivisions=2)
-        else:
-            raise PartnetFormatError(f"{src}: {where}: unsupported geometry <{g.tag}>")
-    except ValueError as e:
-        raise PartnetFormatError(f"{src}: {where}: bad <{g.tag}> geometry: {e}") from e
-    return None, prim, np.ones(3)
+    if geometry.mesh is not None:
+        scale = np.ones(3) if geometry.mesh.scale is None else np.asarray(geometry.mesh.scale)
+        return _mesh_path(folder, geometry.mesh.filename, where, src), None, scale * np.ones(3)
+    if geometry.box is not None:
+        return None, trimesh.creation.box(extents=np.asarray(geometry.box.size)), np.ones(3)
+    if geometry.cylinder is not None:
+        c = geometry.cylinder
+        return None, trimesh.creation.cylinder(radius=c.radius, height=c.length), np.ones(3)
+    if geometry.sphere is not None:
+        return (
+            None,
+            trimesh.creation.icosphere(radius=geometry.sphere.radius, subdivisions=2),
+            np.ones(3),
+        )
+    raise PartnetFormatError(f"{src}: {where}: unsupported geometry")
 
 
 def parse_urdf(path: Path) -> _Urdf:
-    """Read ``mobility.urdf`` (links, visuals, joints); errors name the file and element."""
-    folder = path.parent
+    """Read ``mobility.urdf`` (links, visuals, joints) with the project's URDF reader
+    (:func:`asset_pipeline.asset_io.parse_robot`); errors name the file and element."""
     try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as e:
-        raise PartnetFormatError(f"{path}: not valid XML: {e}") from e
-    except OSError as e:
-        raise PartnetFormatError(f"{path}: cannot read: {e}") from e
-    if root.tag != "robot":
-        raise PartnetFormatError(f"{path}: top-level element is <{root.tag}>, expected <robot>")
+        robot = parse_robot(path, "not found")
+    except AssetFormatError as e:
+        raise PartnetFormatError(str(e)) from e
+    folder = path.parent
     links: dict[str, _Link] = {}
-    for el in root.findall("link"):
-        name = el.get("name")
-        if not name:
-            raise PartnetFormatError(f"{path}: a <link> has no name")
-        if name in links:
-            raise PartnetFormatError(f"{path}: link {name!r} is defined twice")
-        link = _Link(name)
-        for i, vis in enumerate(el.findall("visual")):
-            where = f"link {name!r} <visual> {i}"
-            file, prim, scale = _geometry(vis, folder, where, path)
-            link.visuals.append(
-                _Visual(
-                    file,
-                    prim,
-                    _origin(vis.find("origin"), where, path),
-                    scale,
-                    vis.get("name") or "",
-                    i,
-                )
-            )
-        links[name] = link
+    for lk in robot.links:
+        if lk.name in links:
+            raise PartnetFormatError(f"{path}: link {lk.name!r} is defined twice")
+        link = _Link(lk.name)
+        for i, vis in enumerate(lk.visuals):
+            where = f"link {lk.name!r} <visual> {i}"
+            file, prim, scale = _geometry(vis.geometry, folder, where, path)
+            origin = np.eye(4) if vis.origin is None else np.asarray(vis.origin, dtype=float)
+            link.visuals.append(_Visual(file, prim, origin, scale, vis.name or "", i))
+        links[lk.name] = link
     if not links:
         raise PartnetFormatError(f"{path}: no <link>")
     joints: dict[str, _UJoint] = {}
-    for el in root.findall("joint"):
-        jname = el.get("name") or "?"
-        where = f"joint {jname!r}"
-        jtype = (el.get("type") or "").lower()
+    for jt in robot.joints:
+        where = f"joint {jt.name!r}"
+        jtype = (jt.type or "").lower()
         if jtype not in ("fixed", "revolute", "prismatic", "continuous", "floating", "planar"):
-            raise PartnetFormatError(f"{path}: {where}: unknown type {el.get('type')!r}")
-        pe, ce = el.find("parent"), el.find("child")
-        if pe is None or ce is None or not pe.get("link") or not ce.get("link"):
-            raise PartnetFormatError(f"{path}: {where}: needs <parent link> and <child link>")
-        parent, child = pe.get("link"), ce.get("link")
-        for role, ln in (("parent", parent), ("child", child)):
+            raise PartnetFormatError(f"{path}: {where}: unknown type {jt.type!r}")
+        for role, ln in (("parent", jt.parent), ("child", jt.child)):
             if ln not in links:
                 raise PartnetFormatError(f"{path}: {where}: {role} link {ln!r} is not defined")
-        if child in joints:
+        if jt.child in joints:
             raise PartnetFormatError(
-                f"{path}: {where}: link {child!r} is already the child of joint {joints[child].name!r}"
+                f"{path}: {where}: link {jt.child!r} is already the child of joint "
+                f"{joints[jt.child].name!r}"
             )
-        axis_el = el.find("axis")
-        axis = _floats(
-            None if axis_el is None else axis_el.get("xyz"), 3, (1, 0, 0), f"{where} <axis>", path
-        )
+        axis = np.array([1.0, 0.0, 0.0]) if jt.axis is None else np.asarray(jt.axis, dtype=float)
         lower = upper = 0.0
-        lim = el.find("limit")
         if jtype in ("revolute", "prismatic"):
-            if lim is None:
+            if jt.limit is None:
                 raise PartnetFormatError(f"{path}: {where}: a {jtype} joint needs <limit>")
-            try:
-                lower, upper = float(lim.get("lower", "0")), float(lim.get("upper", "0"))
-            except ValueError as e:
-                raise PartnetFormatError(
-                    f"{path}: {where}: <limit> lower/upper must be numbers"
-                ) from e
-            if not (math.isfinite(lower) and math.isfinite(upper)):
-                raise PartnetFormatError(f"{path}: {where}: <limit> must be finite")
+            lower = float(jt.limit.lower or 0.0)
+            upper = float(jt.limit.upper or 0.0)
         if jtype in ("revolute", "prismatic", "continuous") and np.linalg.norm(axis) < 1e-9:
             raise PartnetFormatError(f"{path}: {where}: <axis> is the zero vector")
         if jtype in ("floating", "planar"):
             log.warning("%s: %s: %s joint treated as fixed", path, where, jtype)
             jtype = "fixed"
-        joints[child] = _UJoint(
-            jname,
+        origin = np.eye(4) if jt.origin is None else np.asarray(jt.origin, dtype=float)
+        joints[jt.child] = _UJoint(
+            jt.name,
             jtype,
-            parent,
-            child,
-            _origin(el.find("origin"), where, path),
+            jt.parent,
+            jt.child,
+            origin,
             axis / max(np.linalg.norm(axis), 1e-12),
             lower,
             upper,
