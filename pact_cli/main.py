@@ -193,15 +193,27 @@ def build(
         help="auto (a part's primitives, else articulation-aware boxes from its mesh), mesh "
         "(boxes from every part's mesh) or coacd (each part decomposed alone).",
     ),
+    catalog: bool = typer.Option(
+        True,
+        "--catalog/--no-catalog",
+        help="Register the assets of a folder of bundles in FOLDER/registry.sqlite.",
+    ),
 ) -> None:
     """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, asset.json.
 
-    Goes on past bad bundles, reports each at the end and exits 1 if any failed.
+    Goes on past bad bundles, reports each at the end and exits 1 if any failed. The
+    assets built from a folder of bundles are registered in that folder's catalog (so
+    `pact ls`, `pact gallery`, the tasks and `pact check-tasks` find them).
     """
-    from generator.articulated import ObjectModelError, find_bundles
+    import contextlib
+
+    from asset_pipeline.batch import output_lock
+    from asset_pipeline.catalog import Catalog
+    from generator.articulated import ObjectModelError, find_bundles, is_bundle
 
     check_collision(collision)
     bundles: list[Path] = []
+    catalog_of: dict[Path, Path] = {}  # bundle -> the folder whose catalog lists it
     bad: list[tuple[str, str]] = []
     for p in paths:
         try:
@@ -212,6 +224,34 @@ def build(
         if not found:
             bad.append((str(p), "no bundle (object.json) found here"))
         bundles.extend(found)
+        if catalog and not is_bundle(p):
+            catalog_of.update({b: p for b in found})
+    with contextlib.ExitStack() as stack:
+        catalogs = {}
+        for root in sorted(set(catalog_of.values())):
+            stack.enter_context(output_lock(root))
+            catalogs[root] = stack.enter_context(Catalog(root))
+        _build_all(bundles, height, validate, repair, collision, catalogs, catalog_of, bad)
+    for where, why in bad:
+        console.print(f"[red]failed[/red] {escape(f'{where}: {why}')}")
+    if bad:
+        raise typer.Exit(1)
+
+
+def _build_all(
+    bundles: list[Path],
+    height: float | None,
+    validate: bool,
+    repair: bool,
+    collision: str,
+    catalogs: dict,
+    catalog_of: dict[Path, Path],
+    bad: list[tuple[str, str]],
+) -> None:
+    """Build every bundle, print the table, register each result in its catalog."""
+    from asset_pipeline.catalog import register_asset_dir
+    from generator.articulated import ObjectModelError, load_bundle
+
     table = Table(title="pact build")
     for col in ("asset", "status", "detail"):
         table.add_column(col)
@@ -227,11 +267,21 @@ def build(
             bad.append((str(b), detail))
         colour = {"failed": "red", "repaired": "yellow"}.get(status, "green")
         table.add_row(escape(str(b)), f"[{colour}]{status}[/{colour}]", escape(detail))
+        root = catalog_of.get(b)
+        if root is not None:
+            try:
+                provenance = load_bundle(b).provenance
+            except ObjectModelError:  # the failure above names the file
+                provenance = {}
+            origin = dict(
+                source_image=provenance.get("source") or provenance.get("source_image"),
+                generator=provenance.get("importer") or provenance.get("generator"),
+            )
+            if (b / "asset.json").is_file():
+                register_asset_dir(catalogs[root], b, **origin)
+            else:
+                catalogs[root].record_failure(b.name, detail, **origin)
     wide_console().print(table)
-    for where, why in bad:
-        console.print(f"[red]failed[/red] {escape(f'{where}: {why}')}")
-    if bad:
-        raise typer.Exit(1)
 
 
 @app.command("validate")
