@@ -410,15 +410,32 @@ def import_(
 @reports_errors
 def gallery(
     out: Path = typer.Argument(..., help="Output folder of a convert or build run."),
+    serve: bool = typer.Option(
+        False, "--serve", help="Then serve OUT over HTTP (its 3D views need it) until Ctrl-C."
+    ),
+    port: int = typer.Option(8000, help="Port of --serve (0: any free one)."),
+    host: str = typer.Option("127.0.0.1", help="Interface of --serve (default: loopback)."),
 ) -> None:
-    """Write OUT/index.html: inputs, previews, joints and validation status per asset."""
+    """Write OUT/index.html: photo, photo view, previews, fidelity, joints, validation status
+    and a 3D view with joint sliders per asset."""
     from asset_pipeline.catalog import CatalogError
-    from asset_pipeline.gallery import write_gallery
+    from asset_pipeline.gallery import gallery_server, write_gallery
 
     try:
         print(write_gallery(out))
-    except (FileNotFoundError, CatalogError) as e:
+        server = gallery_server(out, port, host) if serve else None
+    except (FileNotFoundError, CatalogError, OSError) as e:
         raise fail(e) from e
+    if server is None:
+        return
+    bound_host, bound_port = server.server_address[:2]
+    console.print(f"serving {escape(str(out))} at http://{bound_host}:{bound_port}/ (Ctrl-C stops)")
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
 
 
 @app.command()

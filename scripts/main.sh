@@ -12,5 +12,5 @@ status=0
 echo
 echo "assets:   $OUT/<id>/ (model.urdf, model.xml, report.json, preview.png)"
 echo "catalog:  $OUT/registry.sqlite   (.venv/bin/pact ls $OUT)"
-echo "gallery:  file://$(pwd)/$OUT/index.html"
+echo "gallery:  .venv/bin/pact gallery $OUT --serve, then open http://127.0.0.1:8000/"
 exit $status

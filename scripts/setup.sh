@@ -57,3 +57,47 @@ else
   log "         previews and RGB observations will be skipped (physics is unaffected)."
   log "         To enable: apt-get install -t bookworm-backports mesa-vulkan-drivers libvulkan1"
 fi
+
+# 4. Chromium for the gallery's browser tests (tests/test_gallery.py) ----------------
+if [ -x /usr/bin/chromium ]; then
+  log "chromium: ok"
+elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  log "installing Debian's chromium (headless screenshots of the gallery's 3D views)"
+  export DEBIAN_FRONTEND=noninteractive
+  apt_log=$(mktemp)
+  if apt-get install -y -qq chromium >"$apt_log" 2>&1 \
+     || { apt-get update -qq >>"$apt_log" 2>&1 && apt-get install -y -qq chromium >>"$apt_log" 2>&1; }; then
+    log "chromium: installed"
+  else
+    tail -n 5 "$apt_log" >&2
+    log "WARNING: apt could not install chromium; the gallery's browser tests will be skipped"
+  fi
+  rm -f "$apt_log"
+else
+  log "WARNING: no /usr/bin/chromium and apt is not usable here (needs root on Debian);"
+  log "         the gallery's browser tests will be skipped. To enable: apt-get install -y chromium"
+fi
+
+# 5. three.js for the gallery's 3D view (npm registry; not kept in the repository) -----
+THREE_VERSION=0.187.0
+THREE_DIR=asset_pipeline/gallery_web/three
+if [ -f "$THREE_DIR/VERSION" ] && [ "$(cat "$THREE_DIR/VERSION")" = "$THREE_VERSION" ]; then
+  log "three.js $THREE_VERSION: ok"
+elif command -v npm >/dev/null 2>&1; then
+  tmp=$(mktemp -d)
+  if (cd "$tmp" && npm pack "three@$THREE_VERSION" --silent >/dev/null 2>&1); then
+    rm -rf "$THREE_DIR" && mkdir -p "$THREE_DIR"
+    # the page's modules and the two GLTFLoader imports, in the package's own layout
+    tar xzf "$tmp/three-$THREE_VERSION.tgz" -C "$THREE_DIR" --strip-components=1 \
+      package/LICENSE package/build/three.module.js package/build/three.core.js \
+      package/examples/jsm/loaders/GLTFLoader.js package/examples/jsm/controls/OrbitControls.js \
+      package/examples/jsm/utils/BufferGeometryUtils.js package/examples/jsm/utils/SkeletonUtils.js
+    echo "$THREE_VERSION" > "$THREE_DIR/VERSION"
+    log "three.js $THREE_VERSION: installed in $THREE_DIR"
+  else
+    log "WARNING: npm could not fetch three@$THREE_VERSION; the gallery's 3D views will be missing"
+  fi
+  rm -rf "$tmp"
+else
+  log "WARNING: no npm; the gallery's 3D views will be missing (apt-get install -y npm)"
+fi
