@@ -545,6 +545,7 @@ def import_path(
     options: ImportOptions | None = None,
     *,
     height: float | None = None,
+    add_handles: bool = True,
 ) -> ImportResult:
     """Import every CAGE/SINGAPO/PAct or PartNet-Mobility object under ``path`` into ``out/<id>/``.
 
@@ -557,14 +558,15 @@ def import_path(
     file and field is raised on unsupported input before anything is written.
     PartNet-Mobility objects are converted by :mod:`asset_pipeline.partnet`, one at a
     time: a bad one is recorded in ``failures`` and the others go on; ``height``
-    (metres) sets their metric scale (it does not apply to ``diffuse_tree`` sources).
+    (metres) sets their metric scale and ``add_handles=False`` keeps their meshes free
+    of added grips (neither applies to ``diffuse_tree`` sources).
     """
     from asset_pipeline import partnet
 
     opts = options or ImportOptions()
     path, out = Path(path), Path(out)
     pn_opts = partnet.PartnetOptions(
-        category=opts.category, height=height, overwrite=opts.overwrite
+        category=opts.category, height=height, overwrite=opts.overwrite, add_handles=add_handles
     )
     sources = find_sources(path)
     objects = {

@@ -372,14 +372,23 @@ def import_(
         help="Closed height in metres of PartNet-Mobility objects: sets the bundle's metric "
         "scale (default: the category's height, applied by pact build).",
     ),
+    add_handles: bool = typer.Option(
+        True,
+        "--add-handles/--no-add-handles",
+        help="Give a PartNet-Mobility door, drawer or lid with no handle (neither a handle "
+        "node nor one on its mesh) an added bar grip; --no-add-handles keeps the artist's "
+        "meshes untouched.",
+    ),
 ) -> None:
     """Import PAct / SINGAPO outputs (diffuse_tree object.json) and PartNet-Mobility objects.
 
     Prints one bundle folder per line. A PartNet-Mobility object that cannot be read
     is reported (``failed PATH: what is wrong``) and the others go on; exit code 1 when
-    some failed, 2 when nothing could be imported.
+    some failed, 2 when nothing could be imported. Each added grip is reported
+    (``grip PATH: part: ...``).
     """
     from asset_pipeline.importers import ImportFormatError, ImportOptions, import_path
+    from asset_pipeline.partnet import GRIP_NOTE
 
     if height is not None and not 0 < height <= 10:
         raise fail(f"--height: must be the object's height in metres, in (0, 10]; got {height}")
@@ -389,11 +398,15 @@ def import_(
             out,
             ImportOptions(up=up, category=category, overwrite=overwrite),
             height=height,
+            add_handles=add_handles,
         )
     except ImportFormatError as e:
         raise fail(e) from e
     for d in written:
         print(d)
+    for w in getattr(written, "warnings", []):
+        if GRIP_NOTE in w:
+            console.print(f"[yellow]grip[/yellow] {escape(w)}")
     failures = getattr(written, "failures", [])
     for f in failures:
         where = "" if f.message.startswith(str(f.source)) else f"{f.source}: "

@@ -601,3 +601,132 @@ def test_failed_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyP
     result = import_objects([folder], tmp_path / "out")
     assert list(result) == [] and not (tmp_path / "out" / "o").exists()
     assert result.failures[0].message.endswith("door_0.glb: No space left on device")
+
+
+# --------------------------------------------------------------------------- handles on the geometry, added grips
+
+
+def test_bar_inside_the_door_mesh_is_found(tmp_path: Path) -> None:
+    """A bar modelled in the door's own mesh (no handle node): the surface standing out of
+    the door's face is the handle, on the bar, away from the hinge, the mesh untouched."""
+    links = bar_handle_door()
+    for ms in links[1].meshes:  # one "door_frame" leaf: the bar is just more door
+        ms.node, ms.group = "door_frame", "door"
+    obj = convert_object(write_partnet(tmp_path / "door", links))
+    door = obj.part("door_0")
+    h = door.handle
+    assert h is not None and h.kind == "bar"
+    pos = metric(obj)(h.position)
+    assert np.linalg.norm(pos - BAR_CENTRE) < BAR_RADIUS  # on the bar, not on a standoff
+    assert abs(h.axis @ [0, 0, 1]) > 0.999  # along the bar (and the hinge)
+    assert abs(pos[1] - (-0.29)) > 0.45  # the hinge is at y = -0.29, the bar at y = 0.22
+    record = obj.provenance["handles"]["door_0"]
+    assert record["source"] == "geometry" and record["kind"] == "bar"
+    assert len(door.mesh.faces) == sum(len(m.mesh.faces) for m in links[1].meshes)
+    assert not any("grip" in w for w in obj.provenance["warnings"])
+
+
+def _flush_drawer() -> list[LinkSpec]:
+    """A 0.4 m cabinet with one drawer whose front is a flat panel: no handle anywhere."""
+    xf = 0.25
+    front = box([xf - 0.015, -0.28, 0.05], [xf, 0.28, 0.35])
+    sides = [
+        box([xf - 0.4, -0.28, 0.05], [xf - 0.015, 0.28, 0.062]),
+        box([xf - 0.4, -0.28, 0.062], [xf - 0.015, -0.268, 0.3]),
+        box([xf - 0.4, 0.268, 0.062], [xf - 0.015, 0.28, 0.3]),
+    ]
+    meshes = [MeshSpec(front, node="drawer_front", color=(150, 40, 40))]
+    meshes += [MeshSpec(m, node="drawer_box", color=(90, 90, 90)) for m in sides]
+    return [
+        LinkSpec("furniture_body", "heavy", cabinet_body(height=0.4), name="frame"),
+        LinkSpec(
+            "drawer",
+            "slider",
+            meshes,
+            JointSpec("prismatic", np.array([0.0, 0.0, 0.2]), np.array([1.0, 0.0, 0.0]), 0.0, 0.3),
+            name="drawer",
+        ),
+    ]
+
+
+def test_flush_drawer_gets_a_grip_that_collides(tmp_path: Path) -> None:
+    """A drawer without any handle gets a bar grip centred on its front (in its visual mesh,
+    in the drawer's colour, recorded); the build gives the grip collision boxes."""
+    from asset_pipeline.asset_io import load_asset
+    from asset_pipeline.build import BuildOptions, build_asset
+
+    links = _flush_drawer()
+    src = write_partnet(tmp_path / "src" / "flush", links)
+    written = import_objects([src], tmp_path / "out")
+    assert len(written) == 1 and not written.failures
+    assert any("drawer_0: no handle modelled; added a" in w for w in written.warnings)
+    obj = load_bundle(written[0])
+    drawer = obj.part("drawer_0")
+    h = drawer.handle
+    assert h is not None and h.kind == "bar" and abs(h.axis @ [0, 1, 0]) > 0.999
+    record = obj.provenance["handles"]["drawer_0"]
+    assert record["source"] == "added" and record["on_surface"]
+    assert record["length_cm"] == 12.0 and "centred on the front" in record["where"]
+    # centred on the front, standing off it (the category height makes it 0.9/0.4 larger)
+    back = metric(obj)
+    pos = back(h.position)
+    assert np.allclose(pos[1:], [0.0, 0.2], atol=0.005)
+    grow = 0.4 / 0.9
+    assert pos[0] - 0.25 == pytest.approx(0.033 * grow, abs=0.002)
+    # the grip is in the drawer's visual mesh, in the front's colour, standoffs to the face
+    n_src = sum(len(m.mesh.faces) for m in links[1].meshes)
+    assert len(drawer.mesh.faces) == n_src + 36  # a bar and two standoffs: 3 boxes
+    added = np.unique(drawer.mesh.faces[n_src:])  # the grip's vertices
+    grip = back(drawer.mesh.vertices[added])
+    assert np.ptp(grip[:, 1]) == pytest.approx(0.12 * grow, abs=1e-3)
+    assert grip[:, 0].max() - 0.25 == pytest.approx((0.033 + 0.008) * grow, abs=1e-3)
+    assert grip[:, 0].min() == pytest.approx(0.25 - 0.002 * grow)  # standoffs 2 mm into the front
+    colours = np.asarray(drawer.mesh.visual.vertex_colors)[added, :3]
+    assert {tuple(c) for c in colours} == {(150, 40, 40)}
+    # the build: a collision piece holds the bar's middle and both ends
+    result = build_asset(written[0], options=BuildOptions(cache_dir=tmp_path / "cache"))
+    asset = load_asset(result.directory, metadata=False)
+    bar = asset.handles["drawer_0"]
+    assert bar.kind == "bar"
+    pieces = [trimesh.load(f) for f in result.directory.glob("collision/drawer_0_*.obj")]
+    for t in (-0.04, 0.0, 0.04):
+        p = bar.position_link + t * bar.axis
+        assert any(pc.contains([p])[0] for pc in pieces), t
+    visual = trimesh.load(result.directory / "visual" / "drawer_0.obj", force="mesh")
+    assert visual.bounds[1][0] >= bar.position_link[0] + 0.005  # the bar is drawn
+
+
+def test_no_added_grips_keeps_the_mesh(tmp_path: Path) -> None:
+    """add_handles=False (``pact import --no-add-handles``): no grip, no handle."""
+    from pact_cli.main import app
+
+    links = _flush_drawer()
+    src = write_partnet(tmp_path / "src" / "flush", links)
+    obj = convert_object(src, PartnetOptions(add_handles=False))
+    drawer = obj.part("drawer_0")
+    assert drawer.handle is None and obj.provenance["handles"]["drawer_0"] is None
+    assert len(drawer.mesh.faces) == sum(len(m.mesh.faces) for m in links[1].meshes)
+    assert not any("grip" in w for w in obj.provenance["warnings"])
+    res = CliRunner().invoke(
+        app, ["import", str(src), "--out", str(tmp_path / "o"), "--no-add-handles"]
+    )
+    assert res.exit_code == 0, res.output
+    assert load_bundle(tmp_path / "o" / "flush").part("drawer_0").handle is None
+    res = CliRunner().invoke(app, ["import", str(src), "--out", str(tmp_path / "o2")])
+    assert res.exit_code == 0 and "grip" in res.output and "drawer_0" in res.output
+    assert load_bundle(tmp_path / "o2" / "flush").part("drawer_0").handle.kind == "bar"
+
+
+def test_flush_door_gets_a_grip_near_its_free_edge(tmp_path: Path) -> None:
+    """A plain door panel: the grip stands near the edge away from the hinge, along it."""
+    links = bar_handle_door()
+    links[1].meshes = links[1].meshes[:1]  # the panel only
+    obj = convert_object(write_partnet(tmp_path / "door", links))
+    h = obj.part("door_0").handle
+    assert h is not None and h.kind == "bar" and abs(h.axis @ [0, 0, 1]) > 0.999
+    pos = metric(obj)(h.position)
+    grow = 0.8 / 0.9  # the cabinet is 0.8 m tall, the grip sized for the default 0.9 m
+    # hinge at y = -0.29, free edge at y = 0.29: 5 cm in from it, at mid-height
+    assert np.allclose(pos[1:], [0.29 - 0.05 * grow, 0.40], atol=0.003)
+    assert pos[0] - (0.25 + 0.018) == pytest.approx(0.033 * grow, abs=0.002)
+    assert "5 cm from the free edge, parallel to the hinge" in " ".join(obj.provenance["warnings"])
