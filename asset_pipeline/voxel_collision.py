@@ -17,10 +17,13 @@ whole object is decomposed together, in one voxel grid of the object frame:
    two movable parts whose rest volumes touch give the overlap to the larger one.
 4. Boxes. Each part's remaining voxels are run-length merged into boxes (x runs, then
    y, then z), neighbouring boxes are merged greedily while the merged box stays
-   filled to ``1 - merge_slack`` and off every carved voxel (summed-volume tables
-   make each test O(1)), at most ``max_pieces`` per part; finally each box is
-   tightened to the samples and filled voxels it holds, so an axis-aligned panel's
-   piece is the panel itself, not its voxels.
+   filled to ``1 - merge_slack``, gains at most a ``merge_depth`` layer of empty space
+   over its largest face and stays off every carved voxel (summed-volume tables make
+   each test O(1)); while more than ``max_pieces`` remain, the pair whose merge adds the
+   least empty volume goes first (a handle standing off a door keeps its own box
+   unless nothing cheaper is left). Finally each box is tightened to the samples and
+   filled voxels it holds, so an axis-aligned panel's piece is the panel itself, not
+   its voxels.
 
 The pieces are boxes in the object frame (8 vertices each), never inside a voxel
 another part sweeps through; they cover the part's surface samples (a sample can only
@@ -38,6 +41,7 @@ import logging
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -51,7 +55,7 @@ from .sweep_geometry import HullSet, swept_hulls
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 9
+CACHE_VERSION = 10
 #: Past the time-out the pitch doubles; at this multiple it runs to the end whatever
 #: it takes (a coarse but valid, sweep-free decomposition).
 FALLBACK_SCALE = 8.0
@@ -69,9 +73,13 @@ class VoxelCollisionParams:
     clearance: int = 1
     #: Distance (m) kept between the base's boxes and the exact sweeps.
     margin: float = 0.0005
-    #: A merge may add at most this fraction of empty volume to the merged box.
+    #: A merge may add at most this fraction of empty volume to the merged box...
     merge_slack: float = 0.12
-    #: Pieces per part at most (merging relaxes its slack up to 0.5 to get there).
+    #: ...and at most a layer this thick (m) over the merged box's largest face: a
+    #: knob does not stretch the drawer's bottom panel across the whole front.
+    merge_depth: float = 0.006
+    #: Pieces per part at most (past the slack, the pair adding the least empty volume
+    #: merges first until this many remain).
     max_pieces: int = 48
     #: Thinnest piece (m) after tightening.
     min_thickness: float = 0.002
@@ -272,24 +280,24 @@ def merge_boxes(
     blocked: _Volume,
     slack: float,
     max_boxes: int,
+    depth: float = math.inf,
 ) -> np.ndarray:
-    """Merge neighbouring boxes (M, 6) greedily; see the module docstring.
+    """Merge neighbouring boxes (M, 6) of cells; see the module docstring.
 
-    A merge replaces two boxes by their bounding box when it holds no blocked cell and
-    its filled cells are at least ``1 - slack`` of its volume. Smallest boxes merge
-    first. While more than ``max_boxes`` remain the slack is relaxed step by step
-    (:func:`_slacks`), merging only until ``max_boxes`` remain.
+    First greedily, smallest boxes first: two touching boxes become their bounding box
+    when it holds no blocked cell, its filled cells are at least ``1 - slack`` of its
+    volume and its empty cells at most a layer ``depth`` cells thick over its largest
+    face. While more than ``max_boxes`` remain, the pair whose bounding box adds the
+    fewest empty cells (and no blocked one) is merged, one pair at a time
+    (:func:`merge_cheapest`): a handle standing off a door stays a box of its own while
+    any cheaper merge is left.
     """
     arr = np.array(boxes, dtype=np.int64).reshape(-1, 6)
     alive = np.ones(len(arr), bool)
-    slacks, level = _slacks(slack), 0
     while True:
-        limit = slacks[level]
         merged_any = False
         vol = np.prod(arr[:, 1::2] - arr[:, 0::2], axis=1)
         for i in np.argsort(vol, kind="stable"):
-            if level > 0 and alive.sum() <= max_boxes:
-                break
             if not alive[i]:
                 continue
             b = arr[i]
@@ -301,8 +309,11 @@ def merge_boxes(
             u = np.empty((len(cand), 6), np.int64)
             u[:, 0::2] = np.minimum(arr[cand, 0::2], b[0::2])
             u[:, 1::2] = np.maximum(arr[cand, 1::2], b[1::2])
-            uvol = np.prod(u[:, 1::2] - u[:, 0::2], axis=1)
-            ok = (filled.count(u) >= (1.0 - limit) * uvol) & (blocked.count(u) == 0)
+            ext = u[:, 1::2] - u[:, 0::2]
+            uvol = np.prod(ext, axis=1)
+            empty = uvol - filled.count(u)
+            face = uvol / ext.min(axis=1)
+            ok = (empty <= slack * uvol) & (empty <= depth * face) & (blocked.count(u) == 0)
             if not ok.any():
                 continue
             k = int(np.argmin(np.where(ok, uvol, np.iinfo(np.int64).max)))
@@ -311,19 +322,91 @@ def merge_boxes(
             arr[cand[k]] = 0
             merged_any = True
         arr, alive = arr[alive], alive[alive]
-        if len(arr) <= max_boxes and (level > 0 or not merged_any):
-            break
         if not merged_any:
-            if level == len(slacks) - 1:
-                break
-            level += 1
-    return arr
+            break
+    if len(arr) <= max_boxes:
+        return arr
+
+    def cost(a: np.ndarray, i: int, others: np.ndarray) -> np.ndarray:
+        b = a[i]
+        u = np.empty((len(others), 6), np.int64)
+        u[:, 0::2] = np.minimum(a[others, 0::2], b[0::2])
+        u[:, 1::2] = np.maximum(a[others, 1::2], b[1::2])
+        touch = np.all((a[others, 0::2] <= b[1::2]) & (a[others, 1::2] >= b[0::2]), axis=1)
+        empty = np.prod(u[:, 1::2] - u[:, 0::2], axis=1) - filled.count(u)
+        return np.where(touch & (blocked.count(u) == 0), empty.astype(np.float64), np.inf)
+
+    def union(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        u = np.empty(6, np.int64)
+        u[0::2] = np.minimum(a[0::2], b[0::2])
+        u[1::2] = np.maximum(a[1::2], b[1::2])
+        return u
+
+    return merge_cheapest(arr, max_boxes, cost, union)
 
 
-def _slacks(slack: float) -> list[float]:
-    """The slacks of merging: ``slack``, then ever larger ones up to unbounded (any merge
-    that stays off the blocked space), tried in turn while too many boxes remain."""
-    return [slack] + [x for x in (0.25, 0.5, 1.0, 2.0, 4.0, 16.0, math.inf) if x > slack]
+def merge_cheapest(
+    boxes: np.ndarray,
+    max_boxes: int,
+    cost: Callable[[np.ndarray, int, np.ndarray], np.ndarray],
+    union: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    allowed: Callable[[np.ndarray], bool] | None = None,
+) -> np.ndarray:
+    """Merge the cheapest pair of ``boxes`` into their ``union`` until ``max_boxes``
+    remain or no pair may merge; returns the boxes left.
+
+    ``cost(boxes, i, others)``: the cost of merging box ``i`` with each of ``others``
+    (inf: never). ``allowed(union)``: a costlier test made only on the cheapest pair (a
+    pair it refuses is not tried again). A cost matrix with per-row minima is updated
+    for the merged box only: O(n) per merge after an O(n^2) start.
+    """
+    a = np.array(boxes)
+    n = len(a)
+    C = np.full((n, n), np.inf)
+    for i in range(n - 1):
+        C[i, i + 1 :] = cost(a, i, np.arange(i + 1, n))
+    alive = np.ones(n, bool)
+    row_arg = C.argmin(axis=1) if n else np.zeros(0, np.int64)
+    row_min = C[np.arange(n), row_arg] if n else np.zeros(0)
+    count = n
+    while count > max_boxes:
+        i = int(np.argmin(row_min))
+        if not np.isfinite(row_min[i]):
+            break
+        j = int(row_arg[i])
+        u = union(a[i], a[j])
+        if allowed is not None and not allowed(u):
+            C[i, j] = np.inf
+            row_arg[i] = int(np.argmin(C[i]))
+            row_min[i] = C[i, row_arg[i]]
+            continue
+        a[i] = u
+        alive[j] = False
+        count -= 1
+        C[j, :] = np.inf
+        C[:, j] = np.inf
+        row_min[j] = np.inf
+        others = np.nonzero(alive)[0]
+        others = others[others != i]
+        c = cost(a, i, others) if len(others) else np.zeros(0)
+        C[i, :] = np.inf
+        C[:, i] = np.inf
+        before = others < i
+        C[others[before], i] = c[before]
+        C[i, others[~before]] = c[~before]
+        row_arg[i] = int(np.argmin(C[i]))
+        row_min[i] = C[i, row_arg[i]]
+        # rows whose minimum was at i or j: searched again; the others may drop to C[r, i]
+        stale = np.nonzero(alive & ((row_arg == i) | (row_arg == j)))[0]
+        stale = stale[stale != i]
+        if len(stale):
+            row_arg[stale] = C[stale].argmin(axis=1)
+            row_min[stale] = C[stale, row_arg[stale]]
+        rows = others[before]
+        lower = C[rows, i] < row_min[rows]
+        row_arg[rows[lower]] = i
+        row_min[rows[lower]] = C[rows[lower], i]
+    return a[alive]
 
 
 class CellBounds:
@@ -511,14 +594,17 @@ def merge_exact(
     min_thickness: float,
     pitch: float,
     within: np.ndarray | None = None,
+    depth: float = math.inf,
 ) -> list[np.ndarray]:
     """Merge neighbouring boxes ((2, 3) bounds) into their bounding box while it stays
-    off ``forbidden`` and within ``1 + slack`` of the two volumes (slack relaxed while more
-    than ``max_boxes`` remain, :func:`_slacks`); the results are tightened to their points.
-    Volumes count every side as at least ``pitch`` long, so thin boxes a fraction of a
-    voxel apart merge as voxels would. ``within`` (K, 2, 3): a merged box must lie in one
-    of these boxes, and thin boxes grow only inside them (a part never outgrows the
-    envelope its sweep was computed from)."""
+    off ``forbidden``, within ``1 + slack`` of the two volumes and adds at most a layer
+    ``depth`` (m) thick over its largest face; then, while more than
+    ``max_boxes`` remain, the pair whose bounding box adds the least volume
+    (:func:`merge_cheapest`). The results are tightened to their points. Volumes count
+    every side as at least ``pitch`` long, so thin boxes a fraction of a voxel apart
+    merge as voxels would. ``within`` (K, 2, 3): a merged box must lie in one of these
+    boxes, and thin boxes grow only inside them (a part never outgrows the envelope its
+    sweep was computed from)."""
     arr = np.array(boxes, dtype=np.float64).reshape(-1, 2, 3)
     alive = np.ones(len(arr), bool)
     touch_gap = max(2 * min_thickness, pitch)
@@ -526,14 +612,10 @@ def merge_exact(
     def volume(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         return np.prod(np.maximum(hi - lo, pitch), axis=-1)
 
-    slacks, level = _slacks(slack), 0
     while True:
-        limit = slacks[level]
         merged_any = False
         vol = volume(arr[:, 0], arr[:, 1])
         for i in np.argsort(vol, kind="stable"):
-            if level > 0 and alive.sum() <= max_boxes:
-                break
             if not alive[i]:
                 continue
             lo, hi = arr[i]
@@ -547,7 +629,9 @@ def merge_exact(
             ulo = np.minimum(arr[cand, 0], lo)
             uhi = np.maximum(arr[cand, 1], hi)
             uvol = volume(ulo, uhi)
-            ok = uvol <= (1.0 + limit) * (vol[i] + vol[cand])
+            added = uvol - vol[i] - vol[cand]
+            face = uvol / np.maximum(uhi - ulo, pitch).min(axis=1)
+            ok = (added <= slack * (vol[i] + vol[cand])) & (added <= depth * face)
             if within is not None:
                 ok &= inside_any(ulo, uhi, within)
             if not ok.any():
@@ -561,12 +645,29 @@ def merge_exact(
             alive[cand[k]] = False
             merged_any = True
         arr, alive = arr[alive], alive[alive]
-        if len(arr) <= max_boxes and (level > 0 or not merged_any):
-            break
         if not merged_any:
-            if level == len(slacks) - 1:
-                break
-            level += 1
+            break
+    if len(arr) > max_boxes:
+
+        def cost(a: np.ndarray, i: int, others: np.ndarray) -> np.ndarray:
+            lo, hi = a[i]
+            near = np.all(
+                (a[others, 0] <= hi + touch_gap) & (a[others, 1] >= lo - touch_gap), axis=1
+            )
+            ulo = np.minimum(a[others, 0], lo)
+            uhi = np.maximum(a[others, 1], hi)
+            added = volume(ulo, uhi) - volume(lo, hi) - volume(a[others, 0], a[others, 1])
+            if within is not None:
+                near &= inside_any(ulo, uhi, within)
+            return np.where(near, added, np.inf)
+
+        def union(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            return np.stack([np.minimum(a[0], b[0]), np.maximum(a[1], b[1])])
+
+        def allowed(u: np.ndarray) -> bool:
+            return not forbidden.intersects(u[None, 0], u[None, 1], margin)[0]
+
+        arr = merge_cheapest(arr, max_boxes, cost, union, allowed)
     out = []
     for lo, hi in arr:
         t = _tight(lo, hi, index, 0.0)
@@ -650,7 +751,12 @@ def _voxel_boxes(
         return []
     runs = np.array(_runs(keep), dtype=np.int64).reshape(-1, 6)
     merged = merge_boxes(
-        runs, _Volume(keep), _Volume(blocked), params.merge_slack, params.max_pieces
+        runs,
+        _Volume(keep),
+        _Volume(blocked),
+        params.merge_slack,
+        params.max_pieces,
+        params.merge_depth / grid.pitch,
     )
     return [tighten(b, grid, cells, params.min_thickness) for b in merged]
 
@@ -731,6 +837,7 @@ def _decompose(
             boxes[p.name] = merge_exact(
                 kept, index[p.name], others, margin, params.merge_slack, params.max_pieces,
                 params.min_thickness, grid.pitch, within=np.array(envelope[p.name]),
+                depth=params.merge_depth,
             )  # fmt: skip
         _check(deadline)
     for p in movable:
@@ -770,7 +877,7 @@ def _decompose(
     _check(deadline)
     boxes[base] = merge_exact(
         kept, index[base], hulls, margin, params.merge_slack, params.max_pieces,
-        params.min_thickness, grid.pitch,
+        params.min_thickness, grid.pitch, depth=params.merge_depth,
     )  # fmt: skip
     carved = {base: int((occ[base] & blocked).sum())}
     return boxes, carved
@@ -804,14 +911,22 @@ def coverage(
     relative: float = 0.01,
     absolute: float = 0.005,
 ) -> dict[str, dict[str, float]]:
-    """How well each part's boxes cover its surface, per part.
+    """How well each part's boxes fit its surface, per part, both ways.
 
-    Surface samples (``spacing`` m apart) farther than max(``absolute``, ``relative`` x
-    the part's largest extent) from the part's boxes count as uncovered; the base's
-    samples inside another part's swept space (the exact hulls of that part's boxes)
-    are left out: no piece may cover them. Returns per part ``uncovered`` (fraction),
-    ``p95`` and ``max`` distance (m), ``tolerance`` (m) and ``excluded`` (fraction).
+    Covering: surface samples (``spacing`` m apart) farther than the tolerance
+    max(``absolute``, ``relative`` x the part's largest extent) from the part's boxes
+    count as uncovered; the base's samples inside another part's swept space (the exact
+    hulls of that part's boxes) are left out: no piece may cover them. Overfill: points
+    on a ``spacing`` lattice inside the boxes that lie farther than the tolerance from
+    the part's surface and outside the cavities its surface encloses (a closed door is
+    solid) count as overfill (a box bridging a handle and the door's far edge).
+
+    Returns per part ``uncovered`` (fraction), ``p95`` and ``max`` distance (m),
+    ``tolerance`` (m), ``excluded`` (fraction), ``overfill`` (fraction of the boxes'
+    volume) and ``overfill_max`` (m: the farthest box point from the surface).
     """
+    from scipy.spatial import cKDTree
+
     hulls = HullSet()
     for p in obj.parts:
         if p.joint is not None and p.joint.movable:
@@ -825,14 +940,49 @@ def coverage(
         kept = samples[~excluded]
         d = distance_to_boxes(kept, boxes[p.name]) if len(kept) else np.zeros(1)
         tol = max(absolute, relative * float(np.ptp(p.mesh.vertices, axis=0).max()))
+        over, over_max = _overfill(p.mesh, boxes[p.name], spacing, tol, cKDTree)
         out[p.name] = {
             "uncovered": float((d > tol).mean()),
             "p95": float(np.percentile(d, 95)),
             "max": float(d.max()),
             "tolerance": tol,
             "excluded": float(excluded.mean()),
+            "overfill": over,
+            "overfill_max": over_max,
         }
     return out
+
+
+def _overfill(
+    mesh: trimesh.Trimesh, boxes: list[np.ndarray], spacing: float, tol: float, tree_type: type
+) -> tuple[float, float]:
+    """(fraction of the boxes' lattice points that are overfill, farthest distance).
+    The surface is sampled at half the lattice spacing, so its voxels leave no gaps
+    for the enclosed-cavity fill to leak through."""
+    samples = surface_points(mesh, 0.5 * spacing)
+    if not boxes or not len(samples):
+        return 0.0, 0.0
+    lo = samples.min(axis=0) - 2 * spacing
+    shape = tuple(int(n) for n in np.ceil((samples.max(axis=0) + 2 * spacing - lo) / spacing))
+    grid = Grid(origin=lo, pitch=spacing, shape=shape)  # type: ignore[arg-type]
+    solid = fill_enclosed(grid.splat(samples))
+    tree = tree_type(samples)
+    total, far, farthest = 0, 0, 0.0
+    for b_lo, b_hi in boxes:
+        n = np.maximum(np.ceil((b_hi - b_lo) / spacing).astype(int), 1)
+        axes = [b_lo[k] + (np.arange(n[k]) + 0.5) * (b_hi[k] - b_lo[k]) / n[k] for k in range(3)]
+        pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        dist, _ = tree.query(pts, distance_upper_bound=10.0)
+        idx, inside = grid.index(pts)
+        in_solid = np.zeros(len(pts), bool)
+        i, j, k = idx[inside].T
+        in_solid[inside] = solid[i, j, k]
+        bad = (dist > tol) & ~in_solid
+        total += len(pts)
+        far += int(bad.sum())
+        if bad.any():
+            farthest = max(farthest, float(dist[bad].max()))
+    return far / total, farthest
 
 
 # --------------------------------------------------------------------------- cache

@@ -67,6 +67,42 @@ def add_to_scene(
     return art
 
 
+#: Clearance (m) left between the floor and the lowest point any part sweeps through.
+FLOOR_CLEARANCE = 0.003
+
+
+def floor_lift(asset: BuiltAsset, steps: int = 24) -> float:
+    """How high (m) to stand the object so that no part dips through the floor.
+
+    An asset rests with its lowest point at z = 0. A door hinged above its bottom edge
+    (an oven's, set flush with the floor) swings that edge below its rest height: on
+    the floor it would jam. Returns how far the collision pieces of any link reach
+    below the rest minimum over each movable joint's range (``steps`` values, the other
+    joints closed), plus ``FLOOR_CLEARANCE``; 0 when nothing dips.
+    """
+    from asset_pipeline.asset_io import link_piece_vertices
+
+    verts = link_piece_vertices(asset)
+
+    def lowest(poses: dict[str, np.ndarray]) -> float:
+        z = [
+            float((v @ poses[name][:3, :3].T + poses[name][:3, 3])[:, 2].min())
+            for name, pieces in verts.items()
+            if name in poses
+            for v in pieces
+            if len(v)
+        ]
+        return min(z, default=0.0)
+
+    rest = lowest(asset.link_poses())
+    reach = rest
+    for j in asset.movable_joints:
+        for q in np.linspace(j.lower, j.upper, steps):
+            reach = min(reach, lowest(asset.link_poses({j.name: float(q)})))
+    dip = rest - reach
+    return dip + FLOOR_CLEARANCE if dip > 1e-4 else 0.0
+
+
 def configure_ground(ground: Actor, options: SimOptions = DEFAULT_SIM_OPTIONS) -> None:
     """Let the ground ignore the robot (and the object when its links ignore each other)."""
     ground.set_collision_group_bit(group=2, bit_idx=ROBOT_GROUND_COLLISION_BIT, bit=1)

@@ -49,6 +49,7 @@ from sim_envs.asset_sources import AssetSource, open_source
 from sim_envs.scene import (
     add_to_scene,
     configure_ground,
+    floor_lift,
     handle_world_positions,
     robot_ignores_ground,
     rotate_z,
@@ -196,6 +197,11 @@ class ArticulatedPartEnv(BaseEnv):
             cand_links.append([art.links_map[p.name] for p in parts])
             self.episode_assets.append(rec)
             self.candidate_parts.append(parts)
+        # an object whose door would swing through the floor stands that much higher
+        self._object_lift = torch.tensor(
+            [floor_lift(rec) for rec in self.episode_assets], dtype=torch.float32,
+            device=self.device,
+        )  # fmt: skip
         self.object = Articulation.merge(objects, name="object")
         self.add_to_state_dict_registry(self.object)
         self._tabulate_parts(objects, cand_links)
@@ -326,10 +332,12 @@ class ArticulatedPartEnv(BaseEnv):
             b = len(env_idx)
             self._select_parts(env_idx)
             slot = self.part_slot[env_idx]
-            # object: on the floor at the origin, front (+x) toward the robot, small yaw
+            # object: on the floor at the origin (raised where a part would swing through
+            # it: sim_envs.scene.floor_lift), front (+x) toward the robot, small yaw
             yaw = (torch.rand(b) * 2 - 1) * self.object_yaw_noise
             pos = torch.zeros((b, 3))
             pos[:, :2] = (torch.rand((b, 2)) * 2 - 1) * self.object_pos_noise
+            pos[:, 2] = self._object_lift[env_idx]
             self.object.set_pose(Pose.create_from_pq(p=pos, q=yaw_quat(yaw)))
             self.object_yaw[env_idx] = yaw
 

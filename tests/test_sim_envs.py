@@ -141,3 +141,29 @@ def test_handle_world_positions_rotates_by_the_link_quaternion() -> None:
     v = torch.tensor([[0.1, 0.0, 0.2], [0.3, -0.2, 0.1]])
     out = handle_world_positions(p, q, v).numpy()
     np.testing.assert_allclose(out, [[1.0, 0.1, 0.7], [0.3, -0.2, 0.1]], atol=1e-6)
+
+
+def test_floor_lift_of_a_door_that_swings_through_the_floor() -> None:
+    """An oven door hinged 3 cm above its bottom edge and 3 cm behind its front face
+    (hinge at z = 0.03, so the door's bottom rests on the floor): its front-bottom edge
+    (+0.03, -0.03 from the hinge) turns about +y and dips to -0.03 (sin t + cos t), lowest
+    -0.03 sqrt(2) at 45 degrees, i.e. 0.03 (sqrt(2) - 1) = 12.4 mm below the floor. A
+    drawer (prismatic, level) never dips."""
+    from asset_pipeline.built_asset import BuiltAsset, CollisionPiece, Joint, Link
+    from sim_envs.scene import FLOOR_CLEARANCE, floor_lift
+
+    def piece(lo: list[float], hi: list[float]) -> CollisionPiece:
+        import trimesh
+
+        return CollisionPiece("unused.obj", mesh=trimesh.creation.box(bounds=[lo, hi]))
+
+    origin = np.eye(4)
+    origin[:3, 3] = [0.3, 0.0, 0.03]
+    base = Link("base", collisions=[piece([-0.3, -0.3, 0.0], [0.28, 0.3, 0.9])])
+    door = Link("door_0", collisions=[piece([-0.01, -0.28, -0.03], [0.03, 0.28, 0.7])])
+    hinge = Joint("joint_door_0", "revolute", "base", "door_0", origin, [0, 1, 0], 0.0, np.pi / 2)
+    oven = BuiltAsset("oven", [base, door], [hinge])
+    expected = 0.03 * (np.sqrt(2) - 1) + FLOOR_CLEARANCE
+    assert floor_lift(oven) == pytest.approx(expected, abs=2e-4)
+    slide = Joint("joint_door_0", "prismatic", "base", "door_0", origin, [1, 0, 0], 0.0, 0.3)
+    assert floor_lift(BuiltAsset("chest", [base, door], [slide])) == 0.0

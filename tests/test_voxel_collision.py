@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 from partnet_fixtures import (
+    BAR_CENTRE,
+    BAR_RADIUS,
     bar_handle_door,
     many_pieces_drawer,
     open_shell_cabinet,
@@ -19,9 +21,14 @@ from asset_pipeline.partnet import PartnetOptions, convert_object
 from asset_pipeline.sweep_geometry import HullSet, swept_hulls
 from asset_pipeline.validate import validate_asset
 from asset_pipeline.voxel_collision import (
+    Grid,
+    PointIndex,
     VoxelCollisionParams,
+    _Volume,
     articulated_boxes,
     coverage,
+    merge_boxes,
+    merge_exact,
     surface_points,
 )
 from generator.articulated import ArticulatedObject, save_bundle
@@ -120,7 +127,54 @@ def test_a_door_swing_stays_free_and_its_bar_handle_is_covered(tmp_path):
         for lo, hi in boxes["door_0"]
     )
     assert near < 0.005  # the bar itself collides: the gripper can close on it
-    assert coverage(obj, boxes)["door_0"]["uncovered"] == 0.0
+    cov = coverage(obj, boxes)
+    assert cov["door_0"]["uncovered"] == 0.0
+    # and no box bridges the bar and the door's face: the fingers fit behind the bar
+    # (the fixture's frame is kept: height 0.8 m is its own; the bar is 35 mm off the face)
+    face, bar_back = BAR_CENTRE[0] - 0.035, BAR_CENTRE[0] - BAR_RADIUS
+    behind = np.array([[0.5 * (face + bar_back), BAR_CENTRE[1], BAR_CENTRE[2]]])
+    assert not _inside(behind, boxes["door_0"], 0.0).any()
+    assert cov["door_0"]["overfill"] < 0.05 and cov["base"]["overfill"] < 0.05, cov
+
+
+def test_merging_to_a_budget_takes_the_pair_that_adds_the_least_empty_space():
+    """A door panel of two strips (A: x 0-4, z 0-10; B: x 4-10, z 0-9, one row short)
+    and a knob (x 6-8, z 5) standing 2 cells off B, all one cell thick. At slack 0
+    nothing merges; held to 2 boxes, A + B (6 empty cells) merge before B + knob
+    (162 - 58 = 104 empty cells)."""
+    occ = np.zeros((12, 4, 12), bool)
+    occ[0:4, 0, 0:10] = True
+    occ[4:10, 0, 0:9] = True
+    occ[6:8, 1:3, 5] = True
+    runs = np.array([[0, 4, 0, 1, 0, 10], [4, 10, 0, 1, 0, 9], [6, 8, 1, 3, 5, 6]])
+    filled, blocked = _Volume(occ), _Volume(np.zeros_like(occ))
+    assert len(merge_boxes(runs, filled, blocked, slack=0.0, max_boxes=3)) == 3
+    out = merge_boxes(runs, filled, blocked, slack=0.0, max_boxes=2)
+    assert sorted(map(tuple, out.tolist())) == [(0, 10, 0, 1, 0, 10), (6, 8, 1, 3, 5, 6)]
+    # a slack of 0.7 lets the knob stretch the panel 3 cells thick (202 of 300 cells
+    # empty); a one-cell depth limit (202 > 1 x the 100-cell face) keeps it apart
+    loose = merge_boxes(runs, filled, blocked, slack=0.7, max_boxes=99)
+    assert loose.tolist() == [[0, 10, 0, 3, 0, 10]]
+    out = merge_boxes(runs, filled, blocked, slack=0.7, max_boxes=99, depth=1.0)
+    assert sorted(map(tuple, out.tolist())) == [(0, 10, 0, 1, 0, 10), (6, 8, 1, 3, 5, 6)]
+
+
+def test_exact_merging_to_a_budget_skips_pairs_that_would_enter_a_sweep():
+    """Three 10 cm boxes in a row along x with 8 mm gaps; a swept hull sits in the first
+    gap. Held to 2 boxes, the cheapest pair (either gap: same added volume) is tried
+    first; the one across the hull is refused, so the 2nd and 3rd merge."""
+    lo = np.array([[0.0, 0, 0], [0.108, 0, 0], [0.216, 0, 0]])
+    boxes = [np.stack([a, a + [0.1, 0.1, 0.1]]) for a in lo]
+    pts = np.concatenate([surface_points(trimesh.creation.box(bounds=b), 0.01) for b in boxes])
+    grid = Grid(origin=np.array([-0.05, -0.05, -0.05]), pitch=0.01, shape=(45, 20, 20))
+    hull = HullSet()
+    hull.add_box(np.array([0.1015, 0.02, 0.02]), np.array([0.1065, 0.08, 0.08]))
+    out = merge_exact(
+        boxes, PointIndex(grid, pts), hull, 0.0005, slack=0.0, max_boxes=2,
+        min_thickness=0.002, pitch=0.01,
+    )  # fmt: skip
+    got = sorted(np.round(np.concatenate([b[0], b[1]]), 3).tolist() for b in out)
+    assert got == [[0.0, 0, 0, 0.1, 0.1, 0.1], [0.108, 0, 0, 0.316, 0.1, 0.1]]
 
 
 def test_a_part_of_dozens_of_loose_pieces(tmp_path):
