@@ -47,6 +47,7 @@ from generator.articulated import (
     Primitive,
     atomic_write_bytes,
 )
+from generator.part_cleaning import clean_parts
 
 log = logging.getLogger(__name__)
 
@@ -410,6 +411,7 @@ class RetrievalGenerator:
             "retrieved": {"category": cat, "seed": seed, "entry": best},
             "mask_parts": None if mask is None else int(len(match)),
         }
+        obj = clean_parts(obj)  # every generator's output (procedural parts are already clean)
         self.timings = {"retrieve": t1 - t0, "fit": time.perf_counter() - t1}
         return obj
 

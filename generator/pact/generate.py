@@ -4,13 +4,17 @@ image (+ optional part mask) -> stage 1 (part-decomposed sparse structure: one R
 occupancy per part slot, ``Stage1Generator.predict_parts`` with the shipped stage-1
 checkpoints) -> token voxels per part -> stage 2 (structure-conditioned flow, Euler + CFG,
 last-block features collected by a ``FeatureAggregator`` over the last S steps) -> SLAT
-decode (fine SDF + RGB per token voxel) -> marching cubes per part -> articulation head on
-the aggregated features (+ revolute origins projected onto the part's AABB surface) ->
-``ArticulatedObject`` in the normalized frame (``scale`` None; a ``height`` hint in metres
+decode (fine SDF + RGB per token voxel) -> marching cubes per part, the topology fixed by
+the stage-1 occupancy (``slat_vae.constrain_sdf``: one closed piece per connected piece
+of the part's occupancy, no islands) -> ``part_cleaning.clean_mesh`` (the cleaning every
+generator's output gets) -> articulation head on the aggregated features (+ revolute
+origins projected onto the part's AABB surface) -> ``ArticulatedObject`` in the
+normalized frame (``scale`` None; a ``height`` hint in metres
 sets ``scale`` = height / the object's z extent). ``assemble`` returns that raw output
 (what the benchmarks score); ``generate`` then fits the box layout
 (``generator.box_layout``: box collision geometry and joints a simulator can move
-without collisions; ``box_layout=False`` turns it off).
+without collisions; ``box_layout=False`` turns it off). ``clean_geometry=False`` gives
+the raw decoded meshes (islands and fragments, for comparisons: ``bench/part_geometry.py``).
 
 Slot 0 is the base; slots 1.. are movable parts named ``<semantic>_<slot>``. Without
 stage-1 checkpoints only ``generate_from_occupancy`` (teacher forcing with given part
@@ -32,6 +36,7 @@ import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout
+from generator.part_cleaning import clean_mesh
 
 from .articulation import (
     ArticulationHead,
@@ -72,7 +77,9 @@ class PActRun:
 
     occupancy (K, R, R, R) bool per slot; meshes per slot (None: no surface); features_2
     per sampling step, each (L, D) (stage 2 last block); tokens' slot/valid for pooling;
-    features_1 per stage-1 step (K, L1, D1) or empty (teacher forcing).
+    features_1 per stage-1 step (K, L1, D1) or empty (teacher forcing); decoded per slot
+    the SLAT decoder's output (token coords (N, 3), sdf (N, sub^3), rgb (N, 3) uint8), so
+    that ``PActGenerator.mesh_parts`` can mesh it again.
     """
 
     occupancy: np.ndarray
@@ -82,6 +89,7 @@ class PActRun:
     valid: torch.Tensor
     features_1: list[torch.Tensor] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    decoded: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
 
 
 def _load_fp32(path: Path, device: str) -> torch.nn.Module:
@@ -109,9 +117,11 @@ class PActGenerator:
         device: torch.device | str = "cpu",
         stage1_head: ArticulationHead | None = None,
         box_layout: bool = True,
+        clean_geometry: bool = True,
     ) -> None:
         self.device = torch.device(device)
         self.box_layout = box_layout
+        self.clean_geometry = clean_geometry
         self.models = {k: m.to(self.device).eval() for k, m in models.items()}
         self.cfg = cfg
         self.stage1 = stage1
@@ -235,6 +245,7 @@ class PActGenerator:
         timings["stage2"] = time.perf_counter() - t
         t = time.perf_counter()
         z = untokenize(x[0].float().cpu().numpy(), toks, self.cfg.flow.latent_channels)
+        decoded = {}
         for k in range(len(occupancy)):
             sel = slot == k
             if not sel.any():
@@ -243,11 +254,39 @@ class PActGenerator:
             sdf, rgb = decode_latents(
                 self.models["vae"], torch.from_numpy(coords[sel]), torch.from_numpy(z[sel]), occ_k
             )
-            meshes[k] = decode_part_mesh(coords[sel], sdf, rgb, occupancy[k])
+            decoded[k] = (coords[sel], sdf, rgb)
         timings["decode"] = time.perf_counter() - t
-        return PActRun(
-            occupancy, meshes, feats2, batch.slot[:1].cpu(), batch.valid[:1].cpu(), feats1, timings
+        t = time.perf_counter()
+        out = PActRun(
+            occupancy,
+            meshes,
+            feats2,
+            batch.slot[:1].cpu(),
+            batch.valid[:1].cpu(),
+            feats1,
+            timings,
+            decoded,
         )
+        out.meshes = self.mesh_parts(out)
+        timings["mesh"] = time.perf_counter() - t
+        return out
+
+    def mesh_parts(
+        self, run: PActRun, clean: bool | None = None
+    ) -> dict[int, trimesh.Trimesh | None]:
+        """Per slot the part mesh of the decoded SDF (``run.decoded``): with ``clean``
+        (default ``self.clean_geometry``) the stage-1 occupancy fixes its topology
+        (``slat_vae.constrain_sdf``) and ``clean_mesh`` checks it (the base keeps one
+        piece per connected piece of its occupancy, a movable part one piece, every
+        piece closed); without, the raw marching cubes of the decoded SDF."""
+        clean = self.clean_geometry if clean is None else clean
+        meshes: dict[int, trimesh.Trimesh | None] = {}
+        for k, (coords, sdf, rgb) in run.decoded.items():
+            mesh = decode_part_mesh(coords, sdf, rgb, run.occupancy[k], constrain=clean)
+            if clean and mesh is not None and len(mesh.faces):
+                mesh = clean_mesh(mesh, movable=k > 0)
+            meshes[k] = mesh
+        return meshes
 
     def articulation(
         self, run: PActRun, agg_steps: int | None = None, source: str = "stage2"
@@ -330,6 +369,7 @@ class PActGenerator:
                 "seed": self.seed,
                 "articulation_features": source,
                 "agg_steps": agg_steps or self.sampler.agg_steps,
+                "geometry": "occupancy-constrained" if self.clean_geometry else "raw",
             },
         )
         obj.validate(f"{self.name} output")

@@ -20,12 +20,16 @@ state (empty / interior / token).
 Latent statistics (per-channel mean and std over the training set) are buffers, saved
 with the weights; the stage-2 flow works on normalized latents (``normalize`` /
 ``denormalize``). ``decode_part_mesh`` assembles the fine SDF grid (R * 4 = 128, only
-around the part's voxels) and runs marching cubes (scikit-image), colouring vertices
-with the decoded RGB of their nearest token voxel.
+around the part's voxels), lets the stage-1 occupancy fix its topology
+(``constrain_sdf``: a lattice through every occupied voxel forced inside, islands and
+cavities removed, so a part decodes to one closed piece per connected piece of its
+occupancy, thin panels included) and runs marching cubes (scikit-image), colouring
+vertices with the decoded RGB of their nearest token voxel.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -34,6 +38,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from scipy import ndimage
 
 from .model_configs import register
 from .slat_data import RESOLUTION, SUB
@@ -249,31 +254,128 @@ def fine_sdf_grid(
     return grid, lo * s
 
 
-def decode_part_mesh(
-    coords: np.ndarray, sdf: np.ndarray, rgb: np.ndarray, occupancy: np.ndarray
-):  # -> trimesh.Trimesh | None
-    """Marching cubes over a part's decoded fine SDF; vertex colours from decoded RGB.
+#: Value (truncated units: 1 = one voxel = ``sub`` fine cells) written into a forced
+#: inside cell, and the largest value left next to one: half a fine cell each way, so a
+#: forced sheet one fine cell thick decodes to a plate about one fine cell thick.
+FORCED = 0.125
+#: The 13 "positive" of the 26 neighbour offsets (each neighbouring pair once).
+_HALF_OFFSETS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if d > (0, 0, 0)])
+_FACES = ndimage.generate_binary_structure(3, 1)  # 6-connectivity
 
-    coords (N, 3), sdf (N, sub^3) truncated units, rgb (N, 3) uint8, occupancy (R, R, R).
-    Returns a trimesh.Trimesh in the normalized frame, or None if no surface is found.
-    """
-    import trimesh
-    from scipy import ndimage
-    from skimage.measure import marching_cubes
 
-    if len(coords) == 0:
-        return None
+def _crop_box(coords: np.ndarray, occupancy: np.ndarray, margin: int = 1):
+    """(lo, hi) voxel box of a part's occupancy and tokens, grown by ``margin``."""
     R = occupancy.shape[0]
-    fine = R * round(sdf.shape[1] ** (1 / 3))
-    grid, origin = fine_sdf_grid(coords, sdf, occupancy)
-    grid = np.pad(grid, 1, constant_values=1.0)  # close surfaces at the crop border
-    if grid.min() >= 0 or grid.max() <= 0:
-        return None
-    verts, faces, _, _ = marching_cubes(grid, level=0.0)
-    verts = -0.5 + (verts - 1 + origin + 0.5) / fine  # fine index -> normalized frame
-    # nearest token voxel's colour for every vertex
-    token = np.zeros((R, R, R), bool)
-    token[coords[:, 0], coords[:, 1], coords[:, 2]] = True
+    occ_idx = np.argwhere(occupancy)
+    every = np.concatenate([occ_idx, coords.astype(np.int64)]) if len(occ_idx) else coords
+    lo = np.maximum(every.min(0) - margin, 0)
+    hi = np.minimum(every.max(0) + 1 + margin, R)
+    return lo.astype(np.int64), hi.astype(np.int64)
+
+
+def _anchors(grid: np.ndarray, s: int) -> np.ndarray:
+    """Per voxel of the crop its anchor: the fine cell (crop index) of its block where the
+    decoded SDF is lowest (deepest inside stage 2's surface; ties and flat blocks go to
+    the cells nearest the block centre). (nx, ny, nz, 3) int."""
+    n = np.array(grid.shape) // s
+    blocks = grid.reshape(n[0], s, n[1], s, n[2], s).transpose(0, 2, 4, 1, 3, 5)
+    blocks = blocks.reshape(*n, s**3)
+    a = np.arange(s) - (s - 1) / 2
+    off = np.stack(np.meshgrid(a, a, a, indexing="ij"), -1).reshape(-1, 3)
+    idx = np.argmin(blocks + 0.05 * np.linalg.norm(off, axis=1), axis=-1)
+    sub = np.stack(np.unravel_index(idx, (s, s, s)), -1)
+    return np.moveaxis(np.indices(tuple(n)), 0, -1) * s + sub
+
+
+def occupancy_lattice(grid: np.ndarray, occ: np.ndarray, s: int) -> np.ndarray:
+    """Fine cells (bool, the grid's shape) of the lattice that ties a part's voxels
+    together: every occupied voxel's anchor (``_anchors``) and a 6-connected digital
+    line from it to the anchor of each of its 26 occupied neighbours. The lattice of
+    one 26-connected piece of ``occ`` is one 6-connected set of fine cells; it stays
+    within the occupied voxels except where a diagonal line cuts a corner (at most one
+    voxel out)."""
+    anchors = _anchors(grid, s)
+    out = np.zeros(grid.shape, bool)
+    vox = np.argwhere(occ)
+    if len(vox) == 0:
+        return out
+    a = anchors[tuple(vox.T)]
+    out[tuple(a.T)] = True
+    steps = 2 * s  # anchors of neighbours are < 2 s cells apart per axis: unit steps
+    t = np.arange(steps + 1) / steps
+    for d in _HALF_OFFSETS:
+        w = vox + d
+        ok = (w >= 0).all(1) & (w < np.array(occ.shape)).all(1)
+        v, w = vox[ok], w[ok]
+        ok = occ[tuple(w.T)]
+        if not ok.any():
+            continue
+        p, q = anchors[tuple(v[ok].T)], anchors[tuple(w[ok].T)]  # (M, 3)
+        pts = np.rint(p[:, None] + (q - p)[:, None] * t[None, :, None]).astype(np.int64)
+        step = pts[:, 1:] - pts[:, :-1]  # (M, steps, 3) in {-1, 0, 1}
+        base = pts[:, :-1]
+        for corner in (base + step * [1, 0, 0], base + step * [1, 1, 0]):
+            out[tuple(corner.reshape(-1, 3).T)] = True
+        out[tuple(pts.reshape(-1, 3).T)] = True
+    return out
+
+
+def constrain_sdf(
+    grid: np.ndarray, occ: np.ndarray, interior: np.ndarray, s: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 2's fine SDF with its topology fixed by the stage-1 occupancy.
+
+    grid (X, Y, Z) fine SDF of a crop (``fine_sdf_grid``: tokens decoded, interior -1,
+    empty +1), occ / interior (X/s, Y/s, Z/s) bool, the crop's occupied and interior
+    voxels. Returns (grid, forced) where forced marks the cells forced inside:
+
+    1. the lattice (``occupancy_lattice``) of the occupancy, closed (a cube of 5 fine
+       cells) within the occupied voxels: a sheet through the anchors of a thin panel,
+       solid in thick parts. Where stage 2 already has its surface, the anchors lie
+       inside it and nothing changes; where it decoded nothing (a thin wall's voxel
+       with no negative value), the sheet stands in for it;
+    2. forced cells get at most -FORCED, their positive neighbours at most +FORCED
+       (a forced sheet decodes about one fine cell thick);
+    3. inside regions (6-connected) that touch no forced or interior cell are islands:
+       set outside;
+    4. outside regions (6-connected) that do not reach the crop's border are cavities:
+       set inside.
+
+    The inside set is then one 6-connected region per 26-connected piece of the
+    occupancy with a connected complement, so marching cubes gives one closed surface
+    per piece. Cells outside the occupancy are never made inside except along the
+    lattice's diagonal lines (at most one voxel out); nothing stage 2 put inside a
+    kept region moves.
+    """
+    fine_occ = np.repeat(np.repeat(np.repeat(occ, s, 0), s, 1), s, 2)
+    fine_int = np.repeat(np.repeat(np.repeat(interior, s, 0), s, 1), s, 2)
+    lattice = occupancy_lattice(grid, occ, s)
+    grown = ndimage.maximum_filter(lattice, size=5, mode="constant", cval=False)
+    closed = ndimage.minimum_filter(grown, size=5, mode="constant", cval=True)
+    forced = lattice | (closed & fine_occ)
+    g = grid.astype(np.float32, copy=True)
+    g[forced] = np.minimum(g[forced], -FORCED)
+    near = ndimage.binary_dilation(forced, _FACES) & ~forced
+    g[near] = np.minimum(g[near], FORCED)
+    g[g == 0] = 1e-6  # no sample exactly on the level set (degenerate triangles)
+    inside = g < 0
+    labels, n = ndimage.label(inside, _FACES)
+    if n:
+        keep = np.zeros(n + 1, bool)
+        keep[np.unique(labels[forced | fine_int])] = True
+        keep[0] = False
+        island = inside & ~keep[labels]
+        g[island] = FORCED
+    outside = np.pad(g >= 0, 1, constant_values=True)
+    labels, n = ndimage.label(outside, _FACES)
+    cavity = (labels != labels[0, 0, 0])[1:-1, 1:-1, 1:-1] & (g >= 0)
+    g[cavity] = -FORCED
+    return g, forced
+
+
+def _vertex_colours(verts: np.ndarray, coords: np.ndarray, rgb: np.ndarray, R: int) -> np.ndarray:
+    """(V, 4) uint8: every vertex takes the decoded RGB of its nearest token voxel."""
+    token = _token_grid(coords, R)
     colour = np.zeros((R, R, R, 3), np.uint8)
     colour[coords[:, 0], coords[:, 1], coords[:, 2]] = rgb
     _, (nx, ny, nz) = ndimage.distance_transform_edt(~token, return_indices=True)
@@ -283,10 +385,90 @@ def decode_part_mesh(
         ny[v[:, 0], v[:, 1], v[:, 2]],
         nz[v[:, 0], v[:, 1], v[:, 2]],
     )
-    vc = np.concatenate([colour[vi], np.full((len(v), 1), 255, np.uint8)], axis=1)
-    # marching_cubes on a "positive outside" field gives inward normals: flip the faces
-    mesh = trimesh.Trimesh(verts, faces[:, ::-1], vertex_colors=vc, process=False)
+    return np.concatenate([colour[vi], np.full((len(v), 1), 255, np.uint8)], axis=1)
+
+
+def _closed_pieces(mesh) -> bool:  # noqa: ANN001
+    """Every connected piece of ``mesh`` is watertight, consistently wound, positive."""
+    from generator.part_cleaning import piece_report
+
+    _, volumes, closed = piece_report(mesh)
+    return bool(closed and len(volumes) and np.all(volumes > 0))
+
+
+def _surface(grid: np.ndarray, origin: np.ndarray, fine: int):  # -> trimesh.Trimesh | None
+    """Marching cubes of a fine SDF crop (padded with "outside") in the normalized frame,
+    outward-wound (earlier versions flipped the faces and made every part inside out)."""
+    import trimesh
+    from skimage.measure import marching_cubes
+
+    grid = np.pad(grid, 1, constant_values=1.0)  # close surfaces at the crop border
+    if grid.min() >= 0 or grid.max() <= 0:
+        return None
+    verts, faces, _, _ = marching_cubes(grid, level=0.0)
+    verts = -0.5 + (verts - 1 + origin + 0.5) / fine  # fine index -> normalized frame
+    # scikit-image winds the faces of a "negative inside" field outward (positive volume)
+    return trimesh.Trimesh(verts, faces, process=False)
+
+
+def occupancy_mesh(occupancy: np.ndarray, sub: int = SUB):  # -> trimesh.Trimesh | None
+    """The fallback surface: marching cubes of the occupancy itself on the fine grid
+    (one closed surface per 6-connected piece), no colours."""
+    coords = np.argwhere(occupancy)
+    if len(coords) == 0:
+        return None
+    lo, hi = _crop_box(coords, occupancy)
+    occ = occupancy[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+    fine = np.repeat(np.repeat(np.repeat(occ, sub, 0), sub, 1), sub, 2)
+    return _surface(
+        np.where(fine, -0.5, 0.5).astype(np.float32), lo * sub, occupancy.shape[0] * sub
+    )
+
+
+def decode_part_mesh(
+    coords: np.ndarray,
+    sdf: np.ndarray,
+    rgb: np.ndarray,
+    occupancy: np.ndarray,
+    constrain: bool = True,
+):  # -> trimesh.Trimesh | None
+    """Marching cubes over a part's decoded fine SDF; vertex colours from decoded RGB.
+
+    coords (N, 3), sdf (N, sub^3) truncated units, rgb (N, 3) uint8, occupancy (R, R, R).
+    With ``constrain`` (the default) the stage-1 occupancy fixes the topology
+    (``constrain_sdf``): one closed, outward-wound surface per 26-connected piece of the
+    occupancy, no islands, no cavities; when that fails (not closed), the occupancy's
+    own surface (``occupancy_mesh``) is used. ``constrain=False``: the raw decoded SDF
+    (islands, fragments), as before. Returns a trimesh.Trimesh in the normalized frame,
+    or None if no surface is found.
+    """
+    if len(coords) == 0:
+        return None
+    R = occupancy.shape[0]
+    s = round(sdf.shape[1] ** (1 / 3))
+    fine = R * s
+    grid, origin = fine_sdf_grid(coords, sdf, occupancy)
+    if constrain:
+        token = _token_grid(coords, R)
+        box = tuple(
+            slice(a, a + n) for a, n in zip(origin // s, np.array(grid.shape) // s, strict=True)
+        )
+        occ, tok = occupancy[box], token[box]
+        grid, _ = constrain_sdf(grid, occ | tok, occ & ~tok, s)
+    mesh = _surface(grid, origin, fine)
+    if constrain and (mesh is None or not _closed_pieces(mesh)):
+        log.warning("constrained decoding gave no closed surface; meshing the occupancy")
+        mesh = occupancy_mesh(occupancy | token, s)
+    if mesh is None:
+        return None
+    mesh.visual.vertex_colors = _vertex_colours(mesh.vertices, coords, rgb, R)
     return mesh
+
+
+def _token_grid(coords: np.ndarray, R: int) -> np.ndarray:
+    token = np.zeros((R, R, R), bool)
+    token[coords[:, 0], coords[:, 1], coords[:, 2]] = True
+    return token
 
 
 @torch.no_grad()

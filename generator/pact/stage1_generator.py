@@ -45,6 +45,7 @@ import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout
+from generator.part_cleaning import clean_parts
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
@@ -354,5 +355,6 @@ class Stage1Generator:
                 "articulation": "box rule (stage1_generator.estimate_joint)",
             },
         )
+        obj = clean_parts(obj)  # every generator's output: one closed piece per part
         obj.validate(f"{self.name} output")
         return obj

@@ -197,8 +197,13 @@ def eval_vae(args: argparse.Namespace) -> dict:
             gt_p = arrays["surface_points"][j, s]
             gt_c = arrays["surface_colors"][j, s].astype(np.float32)
             for name, (sdf_v, rgb_v) in versions.items():
+                # the decoder's own surface (no occupancy constraint): the VAE's fidelity
                 mesh = decode_part_mesh(
-                    data.coords[rows][sel], sdf_v[sel], rgb_v[sel].astype(np.uint8), occ[s]
+                    data.coords[rows][sel],
+                    sdf_v[sel],
+                    rgb_v[sel].astype(np.uint8),
+                    occ[s],
+                    constrain=False,
                 )
                 if mesh is None or len(mesh.faces) == 0:
                     continue

@@ -1,0 +1,209 @@
+"""Clean part geometry: occupancy-constrained SLAT decoding and the generic part cleaning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from generator.articulated import ArticulatedObject, Joint, Part
+from generator.pact.slat_data import RESOLUTION, SUB, TRUNCATION, shell_voxels, subsample_points
+from generator.pact.slat_vae import decode_part_mesh
+from generator.part_cleaning import clean_mesh, clean_parts, is_closed, pieces
+
+R = RESOLUTION
+VOXEL = 1.0 / R
+
+
+def _box_sdf(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Exact signed distance to an axis-aligned box (normalized units, negative inside)."""
+    c, h = (lo + hi) / 2, (hi - lo) / 2
+    d = np.abs(points - c) - h
+    return np.linalg.norm(np.maximum(d, 0), axis=-1) + np.minimum(d.max(axis=-1), 0)
+
+
+def _decoded(occ: np.ndarray, boxes: list[tuple[np.ndarray, np.ndarray]]):
+    """Token voxels of ``occ`` and their truncated SDF of the union of ``boxes`` (what a
+    perfect stage 2 would decode), rgb grey."""
+    coords = np.argwhere(shell_voxels(occ))
+    pts = subsample_points(coords)  # (N, 64, 3) normalized
+    d = np.min([_box_sdf(pts, np.asarray(lo), np.asarray(hi)) for lo, hi in boxes], axis=0)
+    sdf = np.clip(d / TRUNCATION, -1, 1).astype(np.float32)
+    return coords, sdf, np.full((len(coords), 3), 128, np.uint8)
+
+
+def _frame(i: float) -> float:
+    """Voxel coordinate -> normalized frame."""
+    return -0.5 + i * VOXEL
+
+
+def _assert_clean(mesh: trimesh.Trimesh, n_pieces: int) -> None:
+    ps = pieces(mesh)
+    assert len(ps) == n_pieces
+    assert all(is_closed(p) for p in ps)
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+
+
+def test_noise_islands_around_a_blob_decode_to_one_piece():
+    occ = np.zeros((R, R, R), bool)
+    occ[8:20, 8:20, 8:20] = True
+    lo, hi = np.full(3, _frame(8.5)), np.full(3, _frame(19.5))  # surface mid-shell
+    coords, sdf, rgb = _decoded(occ, [(lo, hi)])
+    rng = np.random.default_rng(0)
+    sdf = sdf + rng.normal(0, 0.05, sdf.shape).astype(np.float32)
+    # islands: isolated negative sub-samples on the outer side of shell voxels
+    outer = np.flatnonzero(sdf.max(axis=1) > 0.3)
+    for i in rng.choice(outer, 40, replace=False):
+        j = int(np.argmax(sdf[i]))
+        sdf[i, j] = -0.6
+    raw = decode_part_mesh(coords, sdf, rgb, occ, constrain=False)
+    assert len(pieces(raw)) > 10  # the debris the issue shows
+    mesh = decode_part_mesh(coords, sdf, rgb, occ)
+    _assert_clean(mesh, 1)
+    # the surface stays within about a voxel of the true box
+    assert np.allclose(mesh.bounds, [lo, hi], atol=1.0 * VOXEL)
+    assert mesh.visual.vertex_colors.shape == (len(mesh.vertices), 4)
+
+
+def test_cracked_panel_decodes_to_one_piece():
+    """A thin panel whose decoded SDF misses a whole band of voxels (stage 2 decoded
+    nothing there): the raw mesh falls in two, the constrained one does not."""
+    occ = np.zeros((R, R, R), bool)
+    occ[20, 6:26, 4:28] = True
+    x0 = _frame(20.5)
+    lo, hi = (
+        np.array([x0 - 0.008, _frame(6.2), _frame(4.2)]),
+        np.array([x0 + 0.008, _frame(25.8), _frame(27.8)]),
+    )
+    coords, sdf, rgb = _decoded(occ, [(lo, hi)])
+    crack = (coords[:, 2] >= 14) & (coords[:, 2] < 16)
+    sdf[crack] = 1.0
+    assert len(pieces(decode_part_mesh(coords, sdf, rgb, occ, constrain=False))) == 2
+    mesh = decode_part_mesh(coords, sdf, rgb, occ)
+    _assert_clean(mesh, 1)
+    assert mesh.extents[2] > 0.9 * (hi - lo)[2]
+
+
+@pytest.mark.parametrize("x", [20, R - 1])  # in the middle, on the grid's face
+@pytest.mark.parametrize("decoded", ["slab", "nothing"])
+def test_one_voxel_thick_panel_survives(x, decoded):
+    """A 1.5 cm panel of a 1 m object (half a voxel at R = 32) is one voxel thick in the
+    occupancy, with no interior voxels: it survives as one thin closed plate, whether
+    stage 2 decoded the slab or nothing at all."""
+    occ = np.zeros((R, R, R), bool)
+    occ[x, 6:26, 4:28] = True
+    x0 = _frame(x + 0.5)
+    lo = np.array([x0 - 0.0075, _frame(6.1), _frame(4.1)])
+    hi = np.array([x0 + 0.0075, _frame(25.9), _frame(27.9)])
+    coords, sdf, rgb = _decoded(occ, [(lo, hi)])
+    if decoded == "nothing":
+        sdf[:] = 1.0
+    mesh = decode_part_mesh(coords, sdf, rgb, occ)
+    _assert_clean(mesh, 1)
+    ext = mesh.extents
+    assert ext[0] < VOXEL  # a plate, not a voxel slab
+    assert ext[1] > 0.85 * (hi - lo)[1] and ext[2] > 0.85 * (hi - lo)[2]
+    # no holes: the plate covers its face (area of both sides ~ 2 x the face)
+    assert mesh.area > 1.6 * (hi - lo)[1] * (hi - lo)[2]
+    if decoded == "slab":  # thickness near the decoded slab's, not the voxel's
+        assert abs(ext[0] - 0.015) < 0.5 * VOXEL
+
+
+def test_base_of_two_occupancy_blobs_gives_two_pieces():
+    occ = np.zeros((R, R, R), bool)
+    occ[4:12, 4:28, 2:10] = True
+    occ[4:12, 4:28, 20:30] = True
+    boxes = [
+        (
+            np.array([_frame(4.3), _frame(4.3), _frame(2.3)]),
+            np.array([_frame(11.7), _frame(27.7), _frame(9.7)]),
+        ),
+        (
+            np.array([_frame(4.3), _frame(4.3), _frame(20.3)]),
+            np.array([_frame(11.7), _frame(27.7), _frame(29.7)]),
+        ),
+    ]
+    coords, sdf, rgb = _decoded(occ, boxes)
+    mesh = decode_part_mesh(coords, sdf, rgb, occ)
+    _assert_clean(mesh, 2)
+    assert len(pieces(clean_mesh(mesh, movable=False))) == 2  # the base keeps both
+
+
+def test_diagonal_contact_stays_one_piece():
+    """Two blocks of a movable part's occupancy that touch only along an edge (one
+    26-connected piece): one piece, not two."""
+    occ = np.zeros((R, R, R), bool)
+    occ[10:14, 10:14, 10:20] = True
+    occ[14:18, 14:18, 10:20] = True
+    coords = np.argwhere(shell_voxels(occ))
+    sdf = np.ones((len(coords), SUB**3), np.float32)  # nothing decoded
+    mesh = decode_part_mesh(coords, sdf, np.zeros((len(coords), 3), np.uint8), occ)
+    _assert_clean(mesh, 1)
+
+
+# --------------------------------------------------------------------------- cleaning
+
+
+def _coloured(mesh: trimesh.Trimesh, rgb) -> trimesh.Trimesh:  # noqa: ANN001
+    mesh.visual.vertex_colors = np.tile([*rgb, 255], (len(mesh.vertices), 1)).astype(np.uint8)
+    return mesh
+
+
+def _door() -> trimesh.Trimesh:
+    return _coloured(trimesh.creation.box((0.02, 0.5, 0.8)), (150, 100, 50))
+
+
+def test_handle_kept_fleck_dropped():
+    door = _door()
+    handle = trimesh.creation.cylinder(0.01, 0.12)  # along z, 3 cm in front of the door
+    handle.apply_translation([0.01 + 0.03, 0.18, 0.0])
+    fleck = trimesh.creation.box((0.006, 0.006, 0.006))
+    fleck.apply_translation([0.05, -0.1, 0.3])
+    chunk = trimesh.creation.box((0.1, 0.1, 0.1))  # far off: stray debris
+    chunk.apply_translation([0.6, 0.0, 0.0])
+    mesh = trimesh.util.concatenate([door, _coloured(handle, (20, 20, 20)), fleck, chunk])
+    out = clean_mesh(mesh, movable=True)
+    ps = sorted(pieces(out), key=lambda p: -p.area)
+    assert len(ps) == 2
+    assert np.allclose(ps[0].bounds, door.bounds) and np.allclose(ps[1].bounds, handle.bounds)
+    assert all(is_closed(p) for p in ps)
+    # the base keeps every piece but the fleck
+    assert len(pieces(clean_mesh(mesh, movable=False))) == 3
+
+
+def test_open_and_inverted_pieces_are_closed():
+    door = _door()
+    open_box = trimesh.Trimesh(door.vertices, door.faces[:-2], process=False)  # a hole
+    out = clean_mesh(open_box, movable=True)
+    assert len(pieces(out)) == 1 and is_closed(out)
+    inverted = _door()
+    inverted.invert()
+    out = clean_mesh(inverted, movable=False)
+    assert is_closed(out) and np.isclose(out.volume, door.volume)
+
+
+def test_clean_parts_leaves_procedural_objects_unchanged():
+    from generator.procedural import sample_object
+
+    for cat, seed in (("cabinet", 1), ("oven", 0), ("microwave", 2), ("washing_machine", 1)):
+        obj = sample_object(cat, seed, split="test")
+        assert clean_parts(obj) is obj, cat
+
+
+def test_clean_parts_on_a_debris_object():
+    base = _coloured(trimesh.creation.box((0.5, 0.6, 0.8)), (200, 200, 200))
+    base.apply_translation([-0.26, 0, 0])
+    debris = trimesh.creation.icosphere(1, 0.02)
+    debris.apply_translation([0.3, 0.2, 0.3])
+    door = trimesh.util.concatenate([_door(), debris])
+    obj = ArticulatedObject(
+        [
+            Part("base", "base", base),
+            Part("door_1", "door", door, Joint("revolute", [0.01, 0.25, 0], [0, 0, 1], 0, 1.5)),
+        ],
+        scale=None,
+    )
+    out = clean_parts(obj)
+    assert out is not obj and out.parts[0] is obj.parts[0]
+    assert len(pieces(out.parts[1].mesh)) == 1 and is_closed(out.parts[1].mesh)
+    out.validate()
