@@ -1,8 +1,14 @@
 """Batch conversion of an image folder: generate, build, validate, register (``pact convert``).
 
 Each input item (docs/input-format.md) goes through the stages ``load`` ->
-``generate`` -> ``build`` (mesh, collision, rig) -> ``validate`` (checks, repairs,
-preview) in a worker; the driver alone writes the catalog (``OUT/registry.sqlite``).
+``generate`` -> ``texture`` (the photo's camera, the photo baked into the part meshes:
+:mod:`asset_pipeline.photo_camera`, :mod:`asset_pipeline.photo_texture`) -> ``build``
+(mesh, collision, rig) -> ``validate`` (checks, repairs, preview) -> ``fidelity`` (the
+asset rendered from the photo's camera and compared with the photo, into
+``report.json``: :mod:`asset_pipeline.fidelity`) in a worker; the driver alone writes
+the catalog (``OUT/registry.sqlite``). The ``texture`` and ``fidelity`` stages never fail
+an item: a problem there is a warning and the asset goes on without a texture or score
+(docs/fidelity.md).
 
 Guarantees
 ----------
@@ -38,6 +44,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import hashlib
+import io
 import json
 import logging
 import os
@@ -68,7 +75,7 @@ from asset_pipeline.worker_pool import WorkerDied, WorkerPool
 
 log = logging.getLogger(__name__)
 
-STAGES = ("load", "generate", "build", "validate")
+STAGES = ("load", "generate", "texture", "build", "validate", "fidelity")
 GENERATORS = ("pact", "retrieval")
 STAGING = ".staging"
 PREVIOUS = ".previous"
@@ -95,6 +102,12 @@ class ConvertSettings:
     #: How parts collide (asset_pipeline.build.COLLISION_METHODS): "auto" keeps a
     #: generated object's box layout, "voxel" decomposes its meshes instead.
     collision: str = "auto"
+    #: Bake the photo into the part meshes' textures (the camera is estimated whenever
+    #: ``texture`` or ``fidelity`` is on and writes camera.json).
+    texture: bool = True
+    #: Render the asset from the photo's camera and score it (needs ``validate``: the
+    #: score goes into report.json).
+    fidelity: bool = True
 
     def digest(self, generator_version: str = "") -> str:
         fields = asdict(self)
@@ -217,6 +230,11 @@ def convert_item(
         result.category = obj.category
         result.stage_seconds["generate"] = time.perf_counter() - t
 
+        if settings.texture or (settings.fidelity and settings.validate):
+            t = enter("texture")
+            obj = photo_stage(obj, loaded, staging, settings, result.warnings)
+            result.stage_seconds["texture"] = time.perf_counter() - t
+
         t = enter("build")
         save_bundle(obj, staging)
         shutil.copyfile(item.image_path, staging / f"input{item.image_path.suffix.lower()}")
@@ -240,6 +258,10 @@ def convert_item(
                 )
                 result.stage = "validate"
             result.stage_seconds["validate"] = time.perf_counter() - t
+            if settings.fidelity:
+                t = enter("fidelity")
+                fidelity_stage(staging, result.warnings)
+                result.stage_seconds["fidelity"] = time.perf_counter() - t
         result.path = str(staging)
         result.status = status
     except Exception as e:  # a failed item is a result, not a crash
@@ -252,6 +274,92 @@ def convert_item(
         log.debug("item %s failed in %s:\n%s", item.name, stage, traceback.format_exc())
         shutil.rmtree(private, ignore_errors=True)
     return result
+
+
+def photo_stage(
+    obj: Any,
+    loaded: Any,
+    staging: Path,
+    settings: ConvertSettings,
+    warnings: list[str],
+) -> Any:
+    """The ``texture`` stage: fit the photo's camera to ``obj`` (generator frame), write
+    ``camera.json`` (in the built asset's metric frame) and, with ``settings.texture``,
+    return ``obj`` with the photo baked into its part meshes (closed first, as the build
+    would close them) and each part's texture in ``texture/<part>.png``. Never raises: a
+    problem is appended to ``warnings`` and ``obj`` comes back unchanged."""
+    from PIL import Image
+
+    from asset_pipeline.build import BuildOptions, voxel_parts
+    from asset_pipeline.mesh import frame_offset, metric_factor, watertight_object
+    from asset_pipeline.photo_camera import fit_camera, photo_silhouette, write_camera
+    from asset_pipeline.photo_texture import TEXTURE_DIR, bake_photo_texture
+    from generator.articulated import atomic_write_bytes
+
+    where = f"{loaded.item.image_path}"
+    silhouette = photo_silhouette(loaded.image, loaded.mask, loaded.alpha)
+    if silhouette is None:
+        warnings.append(
+            f"{where}: no photo camera or texture: the photo has no silhouette (no mask, no "
+            "alpha channel, no plain background)"
+        )
+        return obj
+    try:
+        options = BuildOptions(collision=settings.collision)
+        closed = watertight_object(obj, options.remesh_resolution, keep=voxel_parts(obj, options))
+        camera = fit_camera(closed, silhouette, loaded.mask)
+        result, extra = obj, {}
+        if settings.texture:
+            part_ids = {name: int(k) for k, name in camera.fit.get("part_match", {}).items()}
+            result, info = bake_photo_texture(
+                closed, loaded.image, camera, silhouette, loaded.mask, part_ids
+            )
+            for name, image in info.pop("images").items():
+                buf = io.BytesIO()
+                Image.fromarray(image).save(buf, format="PNG")
+                atomic_write_bytes(staging / TEXTURE_DIR / f"{name}.png", buf.getvalue())
+            extra["texture"] = info
+        # the build makes the object metric with the same functions (mesh.to_metric)
+        scale = metric_factor(closed, loaded.height, options.default_heights)
+        metric = camera.transformed(scale, frame_offset(closed, scale))
+        staging.mkdir(parents=True, exist_ok=True)
+        write_camera(metric, staging, **extra)
+        return result
+    except Exception as e:  # noqa: BLE001 - the asset goes on without a texture
+        log.debug("photo stage of %s failed:\n%s", where, traceback.format_exc())
+        warnings.append(f"{where}: no photo texture: {type(e).__name__}: {e}")
+        return obj
+
+
+def fidelity_stage(staging: Path, warnings: list[str]) -> None:
+    """The ``fidelity`` stage: render, score and write the score into ``report.json``
+    (:func:`asset_pipeline.fidelity.measure_fidelity`); a score it cannot measure is
+    recorded as skipped with the reason. Never raises."""
+    from asset_pipeline.fidelity import (
+        FidelityUnavailable,
+        measure_fidelity,
+        record_fidelity,
+        skipped_record,
+    )
+
+    try:
+        record = measure_fidelity(staging)
+    except FidelityUnavailable as e:
+        record = skipped_record(str(e))
+        warnings.append(f"{staging.name}: fidelity not measured: {e}")
+    except Exception as e:  # noqa: BLE001 - a score is not worth the asset
+        log.debug("fidelity of %s failed:\n%s", staging.name, traceback.format_exc())
+        record = skipped_record(f"{type(e).__name__}: {e}")
+        warnings.append(f"{staging.name}: fidelity not measured: {type(e).__name__}: {e}")
+    if record.get("low_fidelity"):
+        warnings.append(
+            f"{staging.name}: low fidelity (score {record['score']:.2f}): "
+            + "; ".join(record["reasons"])
+        )
+    try:
+        record_fidelity(staging, record)
+    except Exception as e:  # noqa: BLE001
+        warnings.append(f"{staging.name}: fidelity not recorded: {type(e).__name__}: {e}")
 
 
 def _convert_in_worker(job: tuple[InputItem, str, ConvertSettings], report: Callable) -> ItemResult:

@@ -535,10 +535,13 @@ class Catalog:
         category: str | None = None,
         joint_type: str | None = None,
         details: bool = False,
+        min_fidelity: float | None = None,
     ) -> list[AssetRecord]:
         """Assets matching every given filter, sorted by id.
 
         ``joint_type`` keeps assets with at least one movable part of that type.
+        ``min_fidelity`` keeps assets whose fidelity score (docs/fidelity.md) is at least
+        that; an asset without a score (not measured) is left out.
         ``details=True`` also loads parts and checks.
         """
         where, args = [], []
@@ -557,6 +560,8 @@ class Catalog:
         if where:
             sql += " WHERE " + " AND ".join(where)
         rows = [self._row(r) for r in self.conn.execute(sql + " ORDER BY id", args)]
+        if min_fidelity is not None:
+            rows = [r for r in rows if (fidelity_score(r) or -1.0) >= min_fidelity]
         return [self._details(r) for r in rows] if details else rows
 
     def is_done(self, id: str, source_hash: str | None, settings_hash: str | None) -> bool:
@@ -679,6 +684,8 @@ def records_from_asset_dir(
     if status == "failed" and reason is None:
         reason = ", ".join(c.name for c in checks if not c.passed) or None
     repairs = [] if report is None else report.repairs
+    if "fidelity" not in provenance and report is not None:
+        provenance["fidelity"] = report.fidelity
     known = {f.name for f in fields(AssetRecord)}
     extra = sorted(set(provenance) - known)
     if extra:
@@ -706,6 +713,23 @@ def register_asset_dir(catalog: Catalog, asset_dir: str | Path, **provenance: An
 
 
 # --------------------------------------------------------------------------- display
+
+
+def fidelity_score(row: AssetRecord) -> float | None:
+    """The fidelity score in [0, 1] of a row, None when it was not measured."""
+    score = (row.fidelity or {}).get("score")
+    if isinstance(score, bool) or not isinstance(score, (int, float)) or not math.isfinite(score):
+        return None
+    return float(score)
+
+
+def fidelity_text(row: AssetRecord) -> str:
+    """``0.83`` (``0.52 low`` when flagged low_fidelity); ``-`` when not measured."""
+    score = fidelity_score(row)
+    if score is None:
+        return "-"
+    return f"{score:.2f} low" if (row.fidelity or {}).get("low_fidelity") else f"{score:.2f}"
+
 
 _STATUS_STYLE = {"ok": "green", "repaired": "yellow", "failed": "red"}
 
@@ -735,6 +759,7 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
     t.add_column("joints")
     t.add_column("size m (x*y*z)", justify="right")
     t.add_column("generator")
+    t.add_column("fidelity", justify="right")
     t.add_column("failure / repairs / warnings", overflow="fold", max_width=48)
     for r in rows:
         style = _STATUS_STYLE.get(r.status, "")
@@ -752,6 +777,7 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
             r.joint_types or "-",
             _size_text(r.size),
             gen,
+            fidelity_text(r),
             escape(note),
         )
     return t

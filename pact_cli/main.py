@@ -340,13 +340,24 @@ def ls(
     status: str = typer.Option(None, help="ok, repaired or failed."),
     category: str = typer.Option(None, help="Category filter."),
     joint_type: str = typer.Option(None, help="prismatic or revolute."),
+    min_fidelity: float = typer.Option(
+        None,
+        "--min-fidelity",
+        help="Only assets whose fidelity score (likeness to the photo, 0..1; "
+        "docs/fidelity.md) is at least this; unscored assets are left out.",
+    ),
 ) -> None:
     """List catalogued assets."""
     from asset_pipeline.catalog import Catalog, CatalogError, format_table
 
     try:
         with Catalog(out, readonly=True) as cat:
-            rows = cat.query(status=status, category=category, joint_type=joint_type)
+            rows = cat.query(
+                status=status,
+                category=category,
+                joint_type=joint_type,
+                min_fidelity=min_fidelity,
+            )
     except CatalogError as e:
         raise fail(e) from e
     wide_console().print(format_table(rows))
@@ -484,6 +495,17 @@ def convert(
         help="auto (a generated object's box layout), mesh (articulation-aware boxes cut "
         "from the generated part meshes) or coacd.",
     ),
+    texture: bool = typer.Option(
+        True,
+        "--texture/--no-texture",
+        help="Bake the photo into the asset's textures (from the photo's estimated camera).",
+    ),
+    fidelity: bool = typer.Option(
+        True,
+        "--fidelity/--no-fidelity",
+        help="Render the asset from the photo's camera and score its likeness to the photo "
+        "(report.json, pact ls; needs --validate).",
+    ),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -506,6 +528,8 @@ def convert(
         validate=validate,
         preview=preview,
         collision=COLLISION_OPTIONS.get(collision, collision),
+        texture=texture,
+        fidelity=fidelity,
     )
     log_file = None
     if log_json is not None and str(log_json) != "-":

@@ -95,7 +95,13 @@ def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
         assert report["status"] in ("ok", "repaired")
     lines = [json.loads(x) for x in (tmp_path / "log.jsonl").read_text().splitlines()]
     assert sorted(x["id"] for x in lines) == names
-    assert all(set(x["stage_seconds"]) == {"load", "generate", "build", "validate"} for x in lines)
+    stages = {"load", "generate", "texture", "build", "validate", "fidelity"}
+    assert all(set(x["stage_seconds"]) == stages for x in lines)
+    for name in names:  # the photo baked into every part, the asset scored against it
+        assert (out / name / "camera.json").is_file()
+        assert any((out / name / "texture").glob("*.png"))
+        fidelity = json.loads((out / name / "report.json").read_text())["fidelity"]
+        assert 0.0 <= fidelity["score"] <= 1.0
     r = runner.invoke(app, ["ls", str(out), "--category", "cabinet"])
     assert r.exit_code == 0 and "cabinet_t000000" in r.output and "oven" not in r.output
     r = runner.invoke(app, ["gallery", str(out)])

@@ -138,6 +138,9 @@ class Report:
     preview: str | None = None
     tolerances: Tolerances = DEFAULT_TOLERANCES
     sim_options: SimOptions = DEFAULT_SIM_OPTIONS
+    #: Likeness to the photo (asset_pipeline.fidelity; docs/fidelity.md), None when not
+    #: measured. Written by the convert's ``fidelity`` stage after validation.
+    fidelity: dict[str, Any] | None = None
 
     @property
     def ok(self) -> bool:
@@ -165,6 +168,7 @@ class Report:
             "preview": self.preview,
             "tolerances": _jsonable(asdict(self.tolerances)),
             "sim_options": _jsonable(asdict(self.sim_options)),
+            "fidelity": None if self.fidelity is None else _jsonable(self.fidelity),
         }
 
 
@@ -231,4 +235,5 @@ def read_report(asset_dir: str | Path) -> Report | None:
         preview=doc.get("preview"),
         tolerances=Tolerances(**_known(Tolerances, doc.get("tolerances"))),
         sim_options=SimOptions(**_known(SimOptions, doc.get("sim_options"))),
+        fidelity=doc["fidelity"] if isinstance(doc.get("fidelity"), dict) else None,
     )
