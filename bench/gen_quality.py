@@ -1,14 +1,27 @@
-"""Generation quality on the fixed test split (issue 5). Prints JSON, then a table.
+"""Generation quality on the fixed test split (issue 5) or the real dev split. Prints JSON, then a table.
 
     .venv/bin/python bench/gen_quality.py --generator retrieval [--per-category 6]
         [--split-dir runs/test_split] [--no-mask]
+    .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
+        [--split-dir /work/data/real_split] [--no-mask] [--limit N]
 
-Writes the split once (``generator.data.test_split``), runs the generator on every
-image (with its mask unless ``--no-mask``; the category hint is passed only with
-``--category-hint``), saves the predictions as bundles in SPLIT/pred-<generator>/, and
-prints the paper's metrics per category (generator.metrics) as JSON and a rich table.
-CLIP similarity, the paper's eighth column, needs CLIP weights, which cannot be
-downloaded here; it is not reported.
+Test split (the default): writes the split once (``generator.data.test_split``), runs
+the generator on every image (with its mask unless ``--no-mask``; the category hint is
+passed only with ``--category-hint``), saves the predictions as bundles in
+SPLIT/pred-<generator>/, and prints the paper's metrics per category (generator.metrics)
+as JSON and a rich table.
+
+Real split (``--split real``): the split must have been written (``bench/real_split.py``;
+default folder ``generator.data.real_split.DEFAULT_REAL_SPLIT``, /work/data/real_split).
+Every image (``<object>_<style>_<k>``, product photos and rooms) is generated
+from, the prediction saved in SPLIT/pred-<generator>[-nomask]/<image id>/ and compared
+with its object's ground truth SPLIT/gt/<object>/; the JSON adds the means per style
+and per category and style.
+
+Several ``--generator`` s run one after the other on the same images; the JSON is then
+``{"runs": [<one run's JSON>, ...], "comparison": {category: {metric: {generator:
+value}}}}`` and the table compares them per category. CLIP similarity, the paper's
+eighth column, needs CLIP weights, which cannot be downloaded here; it is not reported.
 """
 
 from __future__ import annotations
@@ -16,16 +29,22 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from PIL import Image
 from rich.console import Console
+from rich.table import Table
 
-from generator.articulated import save_bundle
+from generator.articulated import load_bundle, save_bundle
+from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
 from generator.data.test_split import write_test_split
-from generator.metrics import evaluate_dirs, format_table
+from generator.metrics import METRIC_KEYS, MetricError, evaluate_dirs, evaluate_pair, format_table
+
+GENERATORS = ("pact", "retrieval")
 
 
 def load_generator(name: str):  # noqa: ANN201
@@ -38,46 +57,185 @@ def load_generator(name: str):  # noqa: ANN201
     return PActGenerator.default()
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--generator", default="retrieval")
-    ap.add_argument("--per-category", type=int, default=6)
-    ap.add_argument("--split-dir", type=Path, default=Path("runs/test_split"))
-    ap.add_argument("--no-mask", action="store_true")
-    ap.add_argument("--category-hint", action="store_true")
-    args = ap.parse_args()
+def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool):  # noqa: ANN202
+    img = np.asarray(Image.open(split_dir / "images" / f"{iid}.png").convert("RGB"))
+    mask = None if no_mask else np.asarray(Image.open(split_dir / "images" / f"{iid}.mask.png"))
+    hints = json.loads((split_dir / "images" / f"{iid}.json").read_text())
+    if not category_hint:
+        hints.pop("category", None)
+    return img, mask, hints
 
-    ids = write_test_split(args.split_dir, args.per_category)
-    gen = load_generator(args.generator)
-    tag = f"pred-{args.generator}" + ("-nomask" if args.no_mask else "")
-    pred_dir = args.split_dir / tag
+
+def _means(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key in METRIC_KEYS:
+        vals = [r[key] for r in rows if r.get(key) is not None]
+        out[key] = float(np.mean(vals)) if vals else None
+    out["count"] = len(rows)
+    return out
+
+
+def evaluate_images(
+    pred_dir: Path, split_dir: Path, images: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """``evaluate_dirs`` for a split whose images share ground truth: every prediction
+    ``pred_dir/<image id>`` against ``split_dir/gt/<object>``; also means per style."""
+    gts: dict[str, Any] = {}
+    per_image: dict[str, dict[str, Any]] = {}
+    missing, failed = [], {}
+    for im in images:
+        iid = im["id"]
+        if not (pred_dir / iid / "object.json").is_file():
+            missing.append(iid)
+            continue
+        try:
+            if im["object"] not in gts:
+                gts[im["object"]] = load_bundle(split_dir / "gt" / im["object"])
+            scores = evaluate_pair(load_bundle(pred_dir / iid), gts[im["object"]])
+        except (ValueError, MetricError) as e:  # ObjectModelError is a ValueError
+            failed[iid] = str(e)
+            continue
+        row: dict[str, Any] = {"category": im["category"], "style": im["style"]}
+        row.update({k: (None if v is None or np.isnan(v) else float(v)) for k, v in scores.items()})
+        per_image[iid] = row
+    rows = list(per_image.values())
+
+    def group(key) -> dict[str, Any]:  # noqa: ANN001
+        by: dict[str, list[dict[str, Any]]] = {}
+        for r in rows:
+            by.setdefault(key(r), []).append(r)
+        return {k: _means(v) for k, v in sorted(by.items())}
+
+    return {
+        "per_object": per_image,
+        "per_category": group(lambda r: r["category"]),
+        "per_style": group(lambda r: r["style"]),
+        "per_category_style": group(lambda r: f"{r['category']}/{r['style']}"),
+        "mean": _means(rows),
+        "missing": missing,
+        "failed": failed,
+    }
+
+
+def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
+    """Generate from every image of the split with generator ``name``; the run's JSON."""
+    gen = load_generator(name)
+    tag = f"pred-{name}" + ("-nomask" if args.no_mask else "")
+    pred_dir = split_dir / tag
     seconds = []
+    if args.split == "real":
+        manifest = read_manifest(split_dir) or {}
+        images = manifest.get("images", [])[: args.limit]
+        ids = [im["id"] for im in images]
+    else:
+        ids = write_test_split(split_dir, args.per_category)
     for oid in ids:
-        img = np.asarray(Image.open(args.split_dir / "images" / f"{oid}.png").convert("RGB"))
-        mask = (
-            None
-            if args.no_mask
-            else np.asarray(Image.open(args.split_dir / "images" / f"{oid}.mask.png"))
-        )
-        hints = json.loads((args.split_dir / "images" / f"{oid}.json").read_text())
-        if not args.category_hint:
-            hints.pop("category", None)
+        img, mask, hints = _inputs(split_dir, oid, args.no_mask, args.category_hint)
         t0 = time.perf_counter()
         obj = gen.generate(img, mask, hints)
         seconds.append(time.perf_counter() - t0)
         save_bundle(obj, pred_dir / oid)
-    results = evaluate_dirs(pred_dir, args.split_dir / "gt")
-    out = {
-        "generator": args.generator,
-        "mask": not args.no_mask,
-        "objects": len(ids),
-        "seconds_per_object_median": statistics.median(seconds),
-        "per_category": results["per_category"],
-        "mean": results["mean"],
-        "failed": results.get("failed", {}),
-    }
-    print(json.dumps(out, indent=2))
-    Console(stderr=True).print(format_table(results))
+    if args.split == "real":
+        results = evaluate_images(pred_dir, split_dir, images)
+        out = {
+            "generator": name,
+            "split": "real",
+            "split_dir": str(split_dir),
+            "mask": not args.no_mask,
+            "category_hint": bool(args.category_hint),
+            "images": len(ids),
+            "objects": len({im["object"] for im in images}),
+            "seconds_per_image_median": statistics.median(seconds) if seconds else None,
+            "per_category": results["per_category"],
+            "per_style": results["per_style"],
+            "per_category_style": results["per_category_style"],
+            "mean": results["mean"],
+            "missing": results["missing"],
+            "failed": results["failed"],
+        }
+    else:
+        results = evaluate_dirs(pred_dir, split_dir / "gt")
+        out = {
+            "generator": name,
+            "mask": not args.no_mask,
+            "objects": len(ids),
+            "seconds_per_object_median": statistics.median(seconds),
+            "per_category": results["per_category"],
+            "mean": results["mean"],
+            "failed": results.get("failed", {}),
+        }
+    table = format_table(results)
+    if args.split == "real":
+        table.title = f"{name}, real split{', no mask' if args.no_mask else ''}: {table.title}"
+    Console(stderr=True).print(table)
+    return out
+
+
+def comparison(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """{category (and "all"): {metric: {generator: value}, "count": n}} over ``runs``."""
+    cats = sorted({c for r in runs for c in r["per_category"]}) + ["all"]
+    out: dict[str, Any] = {}
+    for c in cats:
+        row: dict[str, Any] = {}
+        for key in METRIC_KEYS:
+            row[key] = {
+                r["generator"]: (r["mean"] if c == "all" else r["per_category"].get(c, {})).get(key)
+                for r in runs
+            }
+        row["count"] = (runs[0]["mean"] if c == "all" else runs[0]["per_category"].get(c, {})).get(
+            "count", 0
+        )
+        out[c] = row
+    return out
+
+
+def comparison_table(comp: dict[str, Any], names: list[str]) -> Table:
+    table = Table(
+        title="Generation metrics per category: " + " / ".join(names) + " (lower is better)"
+    )
+    table.add_column("category")
+    table.add_column("n", justify="right")
+    for key in METRIC_KEYS:
+        table.add_column(key, justify="right")
+    for cat, row in comp.items():
+        cells = [
+            " / ".join("-" if row[k][n] is None else f"{row[k][n]:.3f}" for n in names)
+            for k in METRIC_KEYS
+        ]
+        table.add_row(cat, str(row["count"]), *cells, style="bold" if cat == "all" else None)
+    return table
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--generator", nargs="+", default=["retrieval"], choices=GENERATORS)
+    ap.add_argument("--split", choices=("test", "real"), default="test")
+    ap.add_argument("--per-category", type=int, default=6, help="Test split objects per category.")
+    ap.add_argument(
+        "--split-dir",
+        type=Path,
+        default=None,
+        help="Default: runs/test_split; real: " + str(DEFAULT_REAL_SPLIT),
+    )
+    ap.add_argument("--limit", type=int, default=None, help="Real split: only the first N images.")
+    ap.add_argument("--no-mask", action="store_true")
+    ap.add_argument("--category-hint", action="store_true")
+    args = ap.parse_args()
+
+    split_dir = args.split_dir or (
+        DEFAULT_REAL_SPLIT if args.split == "real" else Path("runs/test_split")
+    )
+    if args.split == "real" and not (read_manifest(split_dir) or {}).get("images"):
+        sys.exit(
+            f"{split_dir} holds no real split; write it with: .venv/bin/python bench/real_split.py --out {split_dir}"
+        )
+    runs = [run(args, name, split_dir) for name in args.generator]
+    if len(runs) == 1:
+        print(json.dumps(runs[0], indent=2))
+        return
+    comp = comparison(runs)
+    print(json.dumps({"runs": runs, "comparison": comp}, indent=2))
+    Console(stderr=True).print(comparison_table(comp, list(args.generator)))
 
 
 if __name__ == "__main__":
