@@ -958,25 +958,32 @@ def _overfill(
 ) -> tuple[float, float]:
     """(fraction of the boxes' lattice points that are overfill, farthest distance).
     The surface is sampled at half the lattice spacing, so its voxels leave no gaps
-    for the enclosed-cavity fill to leak through."""
+    for the enclosed-cavity fill to leak through. Distances up to twice the tolerance
+    are exact (to the samples); beyond, a distance transform of the surface's voxels
+    gives them to about a lattice spacing (exact queries far from a large part's
+    surface cost minutes)."""
     samples = surface_points(mesh, 0.5 * spacing)
     if not boxes or not len(samples):
         return 0.0, 0.0
-    lo = samples.min(axis=0) - 2 * spacing
-    shape = tuple(int(n) for n in np.ceil((samples.max(axis=0) + 2 * spacing - lo) / spacing))
+    lo = np.minimum(samples.min(axis=0), np.min([b[0] for b in boxes], axis=0)) - 2 * spacing
+    hi = np.maximum(samples.max(axis=0), np.max([b[1] for b in boxes], axis=0)) + 2 * spacing
+    shape = tuple(int(n) for n in np.ceil((hi - lo) / spacing))
     grid = Grid(origin=lo, pitch=spacing, shape=shape)  # type: ignore[arg-type]
-    solid = fill_enclosed(grid.splat(samples))
+    surface = grid.splat(samples)
+    solid = fill_enclosed(surface)
+    coarse = ndimage.distance_transform_edt(~surface) * spacing
     tree = tree_type(samples)
     total, far, farthest = 0, 0, 0.0
     for b_lo, b_hi in boxes:
         n = np.maximum(np.ceil((b_hi - b_lo) / spacing).astype(int), 1)
         axes = [b_lo[k] + (np.arange(n[k]) + 0.5) * (b_hi[k] - b_lo[k]) / n[k] for k in range(3)]
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        dist, _ = tree.query(pts, distance_upper_bound=10.0)
+        dist, _ = tree.query(pts, distance_upper_bound=2 * tol)
         idx, inside = grid.index(pts)
-        in_solid = np.zeros(len(pts), bool)
-        i, j, k = idx[inside].T
-        in_solid[inside] = solid[i, j, k]
+        i, j, k = np.clip(idx, 0, np.array(shape) - 1).T
+        unbounded = ~np.isfinite(dist)
+        dist[unbounded] = np.maximum(coarse[i, j, k][unbounded], 2 * tol)
+        in_solid = solid[i, j, k] & inside
         bad = (dist > tol) & ~in_solid
         total += len(pts)
         far += int(bad.sum())
