@@ -28,8 +28,11 @@ writes it into ``visual/<part>.glb`` as ``baseColorTexture``):
   the camera fit matched to them (``part_ids``) when the mask shows it, else the median
   colour of the whole photo silhouette (never a default grey).
 
-The mesh is split only where a vertex carries two texture coordinates (seen/unseen
-borders and palette blocks); its geometry, and so its closedness, is unchanged.
+Every vertex carries one texture coordinate (a vertex of a seen face its photo position,
+any other vertex its palette block), so the mesh keeps its vertices and faces: a closed
+piece stays one closed piece when the GLB is read back. The faces between a seen and an
+unseen region (one ring at the border of what the camera sees, edge-on in the photo)
+blend across the texture between the two.
 """
 
 from __future__ import annotations
@@ -75,6 +78,11 @@ class TextureOptions:
     block: int = 8
     #: Erosion (px) of the photo's part regions before use (drops blended edge pixels).
     erode: int = 1
+    #: Faces are subdivided until their edges are at most this fraction of the object's
+    #: bounding-box diagonal (at most ``max_subdivisions`` times; a generated mesh's
+    #: faces are smaller already): a face's texture coordinates come from its vertices.
+    max_edge: float = 0.03
+    max_subdivisions: int = 5
 
 
 def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
@@ -92,6 +100,29 @@ def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
     except Exception as e:  # noqa: BLE001 - colour is cosmetic
         log.debug("no generator colours: %s", e)
     return None
+
+
+def _fine_mesh(
+    mesh: trimesh.Trimesh, max_edge: float, max_subdivisions: int
+) -> tuple[trimesh.Trimesh, np.ndarray]:
+    """``mesh`` subdivided (every face into four, keeping the mesh closed) until its
+    longest edge is at most ``max_edge``, and the original face of every new face."""
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    origin = np.arange(len(faces))
+    for _ in range(max_subdivisions):
+        tri = vertices[faces]
+        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(initial=0.0)
+        if longest <= max_edge:
+            break
+        vertices, new_faces, index = trimesh.remesh.subdivide(vertices, faces, return_index=True)
+        parent = np.empty(len(new_faces), np.int64)
+        for old, new in index.items():
+            parent[new] = old
+        faces, origin = new_faces, origin[parent]
+    if len(faces) == len(mesh.faces):
+        return mesh, origin
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False), origin
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -214,40 +245,47 @@ def _textured_part(
     block: int,
 ) -> tuple[trimesh.Trimesh, np.ndarray]:
     """``part``'s mesh textured: ``crop`` (h, w, 3) is the photo from pixel ``origin``
-    (col, row); seen faces map their vertices' photo positions ``photo_uv`` (V, 2) into it,
-    unseen ones the palette block of their colour ``fill`` (F, 3). Returns the mesh and
-    the texture image."""
+    (col, row); the vertices of seen faces map their photo positions ``photo_uv`` (V, 2)
+    into it, every other vertex the palette block of its colour (the mean ``fill`` (F, 3)
+    of its faces). One texture coordinate per vertex: the mesh keeps its vertices and
+    faces, so a closed piece stays one closed piece. Returns the mesh and the image."""
     mesh = part.mesh
     faces = np.asarray(mesh.faces, dtype=np.int64)
-    palette, pidx = _quantize(fill[~seen]) if (~seen).any() else (np.zeros((0, 3), np.uint8), None)
+    nv = len(mesh.vertices)
+    projective = np.zeros(nv, bool)
+    projective[faces[seen].ravel()] = True
+    total = np.zeros((nv, 3))
+    count = np.zeros(nv)
+    np.add.at(total, faces.ravel(), np.repeat(fill, 3, axis=0))
+    np.add.at(count, faces.ravel(), 1.0)
+    vertex_fill = total / np.maximum(count, 1.0)[:, None]
+    other = ~projective
+    if other.any():
+        palette, pidx = _quantize(vertex_fill[other])
+    else:
+        palette, pidx = np.zeros((0, 3), np.uint8), np.zeros(0, np.int64)
     h, w = crop.shape[:2]
     cols = max(1, w // block)
     rows = -(-len(palette) // cols) if len(palette) else 0
     width = max(w, min(len(palette), cols) * block, 1)
     height = h + rows * block
     image = np.zeros((height, width, 3), np.uint8)
+    # under the crop, where no block is: the unseen vertices' median colour (a face
+    # between a seen and an unseen region samples across it)
+    if other.any():
+        image[h:] = np.median(vertex_fill[other], axis=0).astype(np.uint8)
     image[:h, :w] = crop
     if w < width:  # extend the crop's last column (never sampled, keeps filtering clean)
         image[:h, w:] = crop[:, -1:]
-    block_id = np.zeros(len(faces), dtype=np.int64)  # 0: projective; 1 + palette index
-    if len(palette):
-        block_id[~seen] = 1 + pidx
-        for i, colour in enumerate(palette):
-            r, c = divmod(i, cols)
-            image[h + r * block : h + (r + 1) * block, c * block : (c + 1) * block] = colour
-    # one output vertex per (vertex, block) in use
-    key = faces * (len(palette) + 1) + block_id[:, None]
-    uniq, inverse = np.unique(key.ravel(), return_inverse=True)
-    vert = uniq // (len(palette) + 1)
-    blk = uniq % (len(palette) + 1)
-    uv = np.zeros((len(uniq), 2))
-    proj = blk == 0
-    uv[proj, 0] = (photo_uv[vert[proj], 0] - origin[0]) / width
-    uv[proj, 1] = 1.0 - (photo_uv[vert[proj], 1] - origin[1]) / height
-    pal = ~proj
-    r, c = np.divmod(blk[pal] - 1, cols)
-    uv[pal, 0] = (c + 0.5) * block / width
-    uv[pal, 1] = 1.0 - (h + (r + 0.5) * block) / height
+    for i, colour in enumerate(palette):
+        r, c = divmod(i, cols)
+        image[h + r * block : h + (r + 1) * block, c * block : (c + 1) * block] = colour
+    uv = np.zeros((nv, 2))
+    uv[projective, 0] = (photo_uv[projective, 0] - origin[0]) / width
+    uv[projective, 1] = 1.0 - (photo_uv[projective, 1] - origin[1]) / height
+    r, c = np.divmod(pidx, cols)
+    uv[other, 0] = (c + 0.5) * block / width
+    uv[other, 1] = 1.0 - (h + (r + 0.5) * block) / height
     material = trimesh.visual.material.PBRMaterial(
         baseColorTexture=Image.fromarray(image),
         metallicFactor=0.0,
@@ -255,8 +293,8 @@ def _textured_part(
         doubleSided=False,
     )
     out = trimesh.Trimesh(
-        vertices=np.asarray(mesh.vertices)[vert],
-        faces=inverse.reshape(-1, 3),
+        vertices=np.asarray(mesh.vertices),
+        faces=faces,
         visual=trimesh.visual.TextureVisuals(uv=uv, material=material),
         process=False,
     )
@@ -288,6 +326,18 @@ def bake_photo_texture(
     if camera.width != W or camera.height != H:
         camera = camera.resized(W, H)
     part_ids = dict(part_ids or {})
+    # small faces: the ring of faces blending seen and unseen colours stays narrow
+    max_edge = options.max_edge * float(np.linalg.norm(np.ptp(scene_mesh(obj).vertices, axis=0)))
+    generator_colours = {}
+    fine_parts = []
+    for p in obj.parts:
+        mesh, origin_face = _fine_mesh(p.mesh, max_edge, options.max_subdivisions)
+        colours = face_colours(p.mesh)
+        generator_colours[p.name] = None if colours is None else colours[origin_face]
+        fine_parts.append(
+            Part(p.name, p.semantic, mesh, p.joint, list(p.primitives), p.handle, p.material)
+        )
+    obj = ArticulatedObject(fine_parts, obj.category, obj.scale, dict(obj.provenance))
     names = [p.name for p in obj.parts]
     whole = _shrink(np.asarray(silhouette, bool), options.erode)
     object_colour = np.median(image[whole], axis=0).astype(float)
@@ -314,7 +364,7 @@ def bake_photo_texture(
         verts = np.asarray(p.mesh.vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
         photo_uv, _ = camera.project(verts)
         faces = np.asarray(p.mesh.faces, dtype=np.int64)
-        generator = face_colours(p.mesh)
+        generator = generator_colours[p.name]
         if seen.any():
             corners = photo_uv[faces[seen]].reshape(-1, 2)
             lo = np.floor(corners.min(0)).astype(int) - options.margin

@@ -394,7 +394,7 @@ def _rigged(m: _Movable, unit: float) -> Part:
             m.lo, m.hi, n, handle_style, _grip(m, handle_style), _grip_axis(m)
         )
         prims = prims + trims
-        bar = trimesh.util.concatenate([q.to_mesh() for q in trims])
+        bar = _one_solid([q.to_mesh() for q in trims])
         bar.visual.vertex_colors = np.tile(HANDLE_COLOR, (len(bar.vertices), 1))
         mesh = trimesh.util.concatenate([p.mesh, bar])
     return Part(p.name, p.semantic, mesh, joint, prims, handle, p.material)
@@ -421,6 +421,19 @@ def _grip(m: _Movable, style: HandleStyle) -> np.ndarray:
         else:
             grip[lat] = m.hi[lat] - style.edge_margin
     return grip
+
+
+def _one_solid(pieces: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The union of overlapping closed solids (a bar on its posts) as one closed mesh, so
+    the handle is one piece of the part's visual; their concatenation if the union
+    fails."""
+    try:
+        union = trimesh.boolean.union(pieces, engine="manifold")
+        if union.is_watertight and union.volume > 0:
+            return union
+    except Exception as e:  # noqa: BLE001 - overlapping pieces still render
+        log.debug("handle union failed: %s", e)
+    return trimesh.util.concatenate(pieces)
 
 
 def _handle_style(m: _Movable, unit: float) -> HandleStyle | None:

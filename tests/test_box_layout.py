@@ -221,3 +221,22 @@ def test_messy_generated_object_validates_in_sapien_after_the_layout(tmp_path):
     assert report.ok, report.reasons
     movable = {p.name for p in out.parts if p.joint is not None}
     assert movable == {"drawer_1", "drawer_2", "door_3"}
+
+
+def test_added_bar_handle_is_one_closed_piece_of_the_visual():
+    """A part without a modelled handle gets the bar (a cylinder on two posts): in its
+    visual mesh that bar is one closed solid beside the panel, not three overlapping
+    ones, so the part is two pieces, both watertight."""
+    drawer = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.0, -0.2, 0.1), (0.3, 0.2, 0.3)),
+        Joint("prismatic", [0.3, 0, 0.2], (1.0, 0.0, 0.0), 0.0, 0.25),
+    )
+    out = _layout([_base(), drawer])["drawer_1"]
+    assert out.handle is not None and out.handle.kind == "bar"
+    pieces = out.mesh.split(only_watertight=False)
+    assert len(pieces) == 2
+    assert all(p.is_watertight and p.volume > 0 for p in pieces)
+    bar = min(pieces, key=lambda p: p.volume)
+    assert bar.bounds[1][0] > 0.3 + 0.02  # stands out of the drawer's front
