@@ -115,6 +115,9 @@ class SolverConfig:
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
+    pinch_retry: bool = True  # a grasp stopped short or not closed: again along the bar
+    approach_blocked: float = 0.02  # m short of the grasp point that counts as stopped
+    grasp_gap_max: float = 0.05  # m between closed fingers: wider, they met no handle
     trace: bool = False  # record per-step diagnostics in SolveResult.trace
 
 
@@ -589,10 +592,10 @@ class ScriptedSolver:
         normal_link = _np(u.handle_normal_link)[0].astype(float)
         depth = cfg.recess_depth if bridged else (cfg.none_depth if bare else cfg.grasp_depth)
 
-        def grasp_goal(offset: float) -> np.ndarray:
-            L = self._link()
-            approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
-            center = L[:3, :3] @ handle_link + L[:3, 3]
+        across = False  # the second try of a blocked approach: fingers along the bar
+
+        def pinch_axis(L: np.ndarray, approach: np.ndarray) -> np.ndarray:
+            """The axis the fingers close across (world frame)."""
             bar = L[:3, :3] @ handle_axis_link
             if bare:  # fingers closing along the face: the "bar" across that
                 bar = np.cross(approach, bar)
@@ -600,7 +603,15 @@ class ScriptedSolver:
                 # fingers closing sideways round a knob: a vertical pinch would catch
                 # the worktop overhanging a drawer (or the drawer above)
                 bar = np.array([0.0, 0.0, 1.0])
-            T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
+            if across:
+                bar = np.cross(approach, bar)
+            return bar
+
+        def grasp_goal(offset: float) -> np.ndarray:
+            L = self._link()
+            approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
+            center = L[:3, :3] @ handle_link + L[:3, 3]
+            T = grasp_frame(approach, pinch_axis(L, approach), center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
 
@@ -609,20 +620,34 @@ class ScriptedSolver:
         if recessed:  # line the fingertips up with the pocket before going in
             stages.append(("align", 0.02, 0.003, 30))
         stages.append(("approach", -depth, 0.006, 40))
-        for name, offset, tol, budget in stages:
-            phase = self._phase = name
-            goal = grasp_goal(offset)
-            for _ in range(budget):
-                dp, dr = self._errors(goal)
-                if dp < tol and dr < 0.05:
-                    break
-                do(self._action(goal, g_reach))
+        for attempt in range(2 if cfg.pinch_retry and not recessed else 1):
+            for name, offset, tol, budget in stages:
+                phase = self._phase = name if attempt == 0 else f"{name}:across"
                 goal = grasp_goal(offset)
-        # 3. grasp (without a modelled handle: lean on the face toward the free edge)
-        phase = self._phase = "grasp"
-        goal = grasp_goal(-depth)
-        for _ in range(10):
-            do(self._action(goal, g_hold))
+                for _ in range(budget):
+                    dp, dr = self._errors(goal)
+                    if dp < tol and dr < 0.05:
+                        break
+                    do(self._action(goal, g_reach))
+                    goal = grasp_goal(offset)
+            # 3. grasp (without a modelled handle: lean on the face toward the free edge)
+            phase = self._phase = "grasp"
+            goal = grasp_goal(-depth)
+            for _ in range(10):
+                do(self._action(goal, g_hold))
+            short = self._errors(goal)[0]
+            if bare or (short < cfg.approach_blocked and self._finger_gap() < cfg.grasp_gap_max):
+                break
+            # the fingers met something short of the handle or could not close on it (a
+            # worktop overhanging a drawer's short pull, the drawer above): back off and
+            # come in again with them closing along the bar (a pull shorter than the
+            # 8 cm opening)
+            log.debug(
+                "grasp blocked (%.3f m short, gap %.3f m); pinching along the bar",
+                short,
+                self._finger_gap(),
+            )
+            across = True
         tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
         if bare:
             # lean across the face (tcp x); for a door, toward its free edge
@@ -678,7 +703,13 @@ class ScriptedSolver:
             self._grip_axis = (
                 None
                 if bare
-                else (np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link)
+                else (
+                    pinch_axis(L, -(L[:3, :3] @ normal_link))
+                    if across
+                    else (
+                        np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link
+                    )
+                )
             )
             remaining = abs(target - f) * part.range
             dq = sign * min(speed, remaining + 0.01)

@@ -127,3 +127,66 @@ def test_twist_escape_pulls_through_a_wrist_singularity(singular_fridge) -> None
     assert trace[-1]["twists"] > 0
     phases = {t["phase"] for t in trace}
     assert not any(p.startswith("push") for p in phases), sorted(phases)
+
+
+def _drawer_under_a_worktop(root) -> object:
+    """A desk whose top drawer has a 5 cm pull 3 cm under a worktop that overhangs the
+    drawer front by 3 cm: a vertical pinch meets the overhang, one along the pull fits."""
+    import trimesh
+
+    from asset_pipeline.build import build_asset
+    from generator.articulated import ArticulatedObject, Handle, Joint, Part, save_bundle
+    from generator.procedural.solids import box, cylinder
+    from sim_envs import FolderSource
+
+    def part(name, semantic, prims, joint=None, handle=None):
+        mesh = trimesh.util.concatenate([q.to_mesh() for q in prims])
+        return Part(name, semantic, mesh, joint, prims, handle)
+
+    base = [
+        box((-0.25, -0.3, 0.0), (0.25, -0.28, 0.7)),  # side walls
+        box((-0.25, 0.28, 0.0), (0.25, 0.3, 0.7)),
+        box((-0.25, -0.28, 0.0), (-0.23, 0.28, 0.7)),  # back
+        box((-0.23, -0.28, 0.0), (0.25, 0.28, 0.5)),  # the lower body
+        box((-0.25, -0.32, 0.7), (0.28, 0.32, 0.73)),  # worktop, 3 cm over the front
+    ]
+    pull = np.array([0.27, 0.0, 0.67])
+    drawer = [
+        box((0.23, -0.275, 0.505), (0.25, 0.275, 0.695)),  # front
+        box((-0.2, -0.26, 0.51), (0.23, 0.26, 0.525)),  # bottom
+        box((-0.2, -0.26, 0.525), (-0.185, 0.26, 0.67)),  # back
+        box((-0.185, -0.26, 0.525), (0.23, -0.245, 0.67)),  # sides
+        box((-0.185, 0.245, 0.525), (0.23, 0.26, 0.67)),
+        cylinder(pull, 0.006, 0.05, 1),  # the pull and its posts
+        box((0.249, -0.02, 0.664), (0.265, -0.012, 0.676)),
+        box((0.249, 0.012, 0.664), (0.265, 0.02, 0.676)),
+    ]
+    obj = ArticulatedObject(
+        [
+            part("base", "base", base),
+            part(
+                "drawer_0",
+                "drawer",
+                drawer,
+                Joint("prismatic", (0.24, 0.0, 0.6), (1.0, 0.0, 0.0), 0.0, 0.3),
+                Handle(pull, np.array([0.0, 1.0, 0.0]), "bar"),
+            ),
+        ],
+        category="desk",
+        scale=1.0,
+    )
+    build_asset(save_bundle(obj, root / "desk_worktop"))
+    return next(iter(FolderSource(root)))
+
+
+@pytest.mark.slow
+def test_a_pull_under_a_worktop_is_pinched_along_its_length(tmp_path) -> None:
+    """The fingers closing across the pull cannot get round it (the worktop overhangs
+    it); the solver backs off and pinches it along its length, and the drawer opens.
+    Without that second try it stays shut."""
+    record = _drawer_under_a_worktop(tmp_path)
+    res, trace = _solve_door(record, "drawer_0")
+    assert res.success, res.reason
+    assert any(t["phase"].endswith(":across") for t in trace)
+    res, _ = _solve_door(record, "drawer_0", pinch_retry=False)
+    assert not res.success
