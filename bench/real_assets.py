@@ -77,6 +77,7 @@ def main() -> None:
     folders = [f for f in find_objects(args.data) if f.name not in excluded]
     folders = folders[: args.limit] if args.limit else folders
     bundles = args.out / "bundles"
+    shutil.rmtree(bundles, ignore_errors=True)  # a fresh import each run
     t0 = time.perf_counter()
     imported = import_objects(folders, bundles)
     import_seconds = time.perf_counter() - t0
