@@ -81,8 +81,8 @@ class TextureOptions:
     #: Faces are subdivided until their edges are at most this fraction of the object's
     #: bounding-box diagonal (at most ``max_subdivisions`` times; a generated mesh's
     #: faces are smaller already): a face's texture coordinates come from its vertices.
-    max_edge: float = 0.03
-    max_subdivisions: int = 5
+    max_edge: float = 0.06
+    max_subdivisions: int = 4
 
 
 def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:

@@ -77,7 +77,7 @@ def test_seen_faces_carry_the_photo(baked):
     ring[base.faces[unseen].ravel()] = True
     rim = ring[base.faces].any(axis=1)
     assert (error[~rim[side]] <= 3).all()
-    assert (~rim[side]).mean() > 0.8
+    assert (~rim[side]).mean() > 0.7
     assert info["parts"]["base"]["seen"] > 0.5 and info["parts"]["drawer_0"]["seen"] > 0.5
 
 
