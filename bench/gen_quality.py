@@ -3,7 +3,8 @@
     .venv/bin/python bench/gen_quality.py --generator retrieval [--per-category 6]
         [--split-dir runs/test_split] [--no-mask]
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
-        [--split-dir /work/data/real_split] [--no-mask] [--limit N]
+        [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
+        [--categories microwave oven ...] [--styles product room]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -120,12 +121,21 @@ def evaluate_images(
 def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
     """Generate from every image of the split with generator ``name``; the run's JSON."""
     gen = load_generator(name)
-    tag = f"pred-{name}" + ("-nomask" if args.no_mask else "")
+    tag = (
+        f"pred-{name}"
+        + ("-nomask" if args.no_mask else "")
+        + ("-hint" if args.category_hint else "")
+    )
     pred_dir = split_dir / tag
     seconds = []
     if args.split == "real":
         manifest = read_manifest(split_dir) or {}
-        images = manifest.get("images", [])[: args.limit]
+        images = [
+            im
+            for im in manifest.get("images", [])
+            if (not args.categories or im["category"] in args.categories)
+            and (not args.styles or im["style"] in args.styles)
+        ][: args.limit]
         ids = [im["id"] for im in images]
     else:
         ids = write_test_split(split_dir, args.per_category)
@@ -218,6 +228,8 @@ def main() -> None:
         help="Default: runs/test_split; real: " + str(DEFAULT_REAL_SPLIT),
     )
     ap.add_argument("--limit", type=int, default=None, help="Real split: only the first N images.")
+    ap.add_argument("--categories", nargs="+", default=None, help="Real split: only these.")
+    ap.add_argument("--styles", nargs="+", default=None, help="Real split: product and/or room.")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument("--category-hint", action="store_true")
     args = ap.parse_args()

@@ -332,3 +332,44 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
     part = movable[0].name  # the microwave's door; the cabinet's drawer_1
     res, _ = solve_part(record, part, seed=0)
     assert res.success, (name, part, res)
+
+
+def _joint(type_: str, semantic: str, origin, axis):  # noqa: ANN202
+    from generator.pact.articulation import PartJoint
+
+    return PartJoint(
+        type_, semantic, np.array(origin, float), np.array(axis, float), 0.0, 1.2, np.ones(3) / 3
+    )
+
+
+def test_category_prior_hinges_doors_as_the_category_does():
+    """A user's category hint: a microwave's door hinged at its bottom edge turns to a
+    side hinge (at the side nearest the prediction), an oven's side-hinged door to a
+    bottom hinge, a microwave 'drawer' to a door; a cabinet's door, a lid and a part
+    that is not a front panel keep what the head predicted."""
+    from generator.pact.articulation import apply_category_prior
+
+    lo, hi = np.array([0.3, -0.4, -0.3]), np.array([0.35, 0.2, 0.3])  # a front panel
+    j = apply_category_prior(
+        _joint("revolute", "door", (0.35, 0.1, -0.3), (0, 1, 0)), "microwave", lo, hi, 0.35
+    )
+    assert np.allclose(j.axis, (0, 0, 1)) and np.allclose(j.origin, (0.35, 0.2, 0.0))
+    assert j.upper - j.lower >= np.pi / 2
+    j = apply_category_prior(
+        _joint("revolute", "door", (0.35, -0.4, 0.0), (0, 0, 1)), "oven", lo, hi, 0.35
+    )
+    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.35, -0.1, -0.3))
+    j = apply_category_prior(
+        _joint("prismatic", "drawer", (0.35, 0, 0), (1, 0, 0)), "microwave", lo, hi, 0.35
+    )
+    assert (j.type, j.semantic) == ("revolute", "door") and np.allclose(j.axis, (0, 0, 1))
+    # left alone: no rule for cabinets; a drawer of an oven; a part away from the front
+    for category, joint, front in (
+        ("cabinet", _joint("revolute", "door", (0.35, 0.1, -0.3), (0, 1, 0)), 0.35),
+        ("oven", _joint("prismatic", "drawer", (0.35, 0, 0), (1, 0, 0)), 0.35),
+        ("microwave", _joint("revolute", "door", (0.35, 0.1, -0.3), (0, 1, 0)), 0.6),
+    ):
+        before = (joint.type, joint.semantic, joint.origin.copy(), joint.axis.copy())
+        after = apply_category_prior(joint, category, lo, hi, front)
+        assert (after.type, after.semantic) == before[:2]
+        assert np.allclose(after.origin, before[2]) and np.allclose(after.axis, before[3])

@@ -247,3 +247,52 @@ def postprocess_joint(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJ
     if joint.type == "revolute":
         joint.origin = project_origin_to_aabb(joint.origin, lo, hi)
     return joint
+
+
+#: How doors of a category hinge, when the user names the category (a hint): the head
+#: alone sometimes hinges a microwave's door at its bottom edge or an oven's at its side.
+#: ``vertical``: a side hinge; ``bottom``: a hinge along the door's bottom edge.
+DOOR_HINGE = {
+    "microwave": "vertical",
+    "refrigerator": "vertical",
+    "washing_machine": "vertical",
+    "oven": "bottom",
+    "dishwasher": "bottom",
+}
+#: Categories whose every movable front panel is a door (a microwave has no drawer).
+DOORS_ONLY = ("microwave",)
+
+
+def apply_category_prior(
+    joint: PartJoint, category: str, lo: np.ndarray, hi: np.ndarray, front: float
+) -> PartJoint:
+    """``joint`` of a part with bounds ``lo``..``hi`` made to agree with how doors of
+    ``category`` open (``DOOR_HINGE``); ``front`` is the object's front (largest x).
+
+    Only front panels change (the part thin along x and reaching within a tenth of the
+    object's size of its front): in ``DOORS_ONLY`` categories such a panel becomes a
+    revolute door; a revolute front panel of a ``DOOR_HINGE`` category gets a vertical
+    axis at the side edge nearest the predicted origin (``vertical``) or an axis along y
+    at its bottom edge (``bottom``), at the front face, the range kept (at least a
+    quarter turn). A lid, a part on top, a fixed part and any category without a rule
+    are left as they are."""
+    hinge = DOOR_HINGE.get(category)
+    size = hi - lo
+    panel = size[0] < 0.6 * min(size[1], size[2]) and hi[0] >= front - 0.1
+    if hinge is None or joint.type == "fixed" or not panel or joint.semantic == "lid":
+        return joint
+    if category in DOORS_ONLY:
+        joint.type, joint.semantic = "revolute", "door"
+    if joint.type != "revolute":
+        return joint
+    origin = np.array(joint.origin, dtype=float)
+    if hinge == "vertical":
+        side = lo[1] if origin[1] < 0.5 * (lo[1] + hi[1]) else hi[1]
+        joint.axis = np.array([0.0, 0.0, 1.0])
+        joint.origin = np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
+    else:
+        joint.axis = np.array([0.0, 1.0, 0.0])
+        joint.origin = np.array([hi[0], 0.5 * (lo[1] + hi[1]), lo[2]])
+    joint.semantic = "door"
+    joint.lower, joint.upper = 0.0, max(float(joint.upper - joint.lower), 0.5 * np.pi)
+    return joint

@@ -41,6 +41,7 @@ from generator.part_cleaning import clean_mesh
 from .articulation import (
     ArticulationHead,
     aggregate_last,
+    apply_category_prior,
     decode_joint,
     pool_parts,
     pool_slots,
@@ -349,6 +350,9 @@ class PActGenerator:
                 parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
             lo, hi = meshes[k].bounds
+            if hints.get("category"):  # the user's category: how its doors hinge
+                front = max(float(m.bounds[1][0]) for m in meshes.values())
+                pj = apply_category_prior(pj, str(hints["category"]), lo, hi, front)
             pj = postprocess_joint(pj, lo, hi)
             if pj.type == "fixed":
                 joint = Joint("fixed", origin=pj.origin, axis=pj.axis)
