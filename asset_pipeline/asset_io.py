@@ -23,6 +23,7 @@ folder (absolute, ``..``, a symlink out) or a malformed ``asset.json`` raise
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
@@ -104,11 +105,35 @@ def _quat_wxyz(T: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- OBJ
 
 
-def obj_text(mesh: trimesh.Trimesh) -> str:
-    """Wavefront OBJ of the geometry only (positions and faces; MuJoCo and PhysX read it)."""
-    return trimesh.exchange.obj.export_obj(
-        mesh, include_normals=False, include_color=False, include_texture=False, header=None
-    )
+def obj_text(mesh: trimesh.Trimesh, uv: np.ndarray | None = None) -> str:
+    """Wavefront OBJ of the geometry (positions and faces; MuJoCo and PhysX read it), with
+    ``uv`` (one texture coordinate per vertex, origin bottom-left) as ``vt`` lines."""
+    if uv is None:
+        return trimesh.exchange.obj.export_obj(
+            mesh, include_normals=False, include_color=False, include_texture=False, header=None
+        )
+    v = np.asarray(mesh.vertices, dtype=float)
+    f = np.asarray(mesh.faces, dtype=np.int64) + 1
+    lines = [f"v {x:.8g} {y:.8g} {z:.8g}" for x, y, z in v]
+    lines += [f"vt {a:.8g} {b:.8g}" for a, b in np.asarray(uv, dtype=float)]
+    lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in f]
+    return "\n".join(lines) + "\n"
+
+
+def texture_image(mesh: trimesh.Trimesh | None) -> tuple[np.ndarray, bytes] | None:
+    """(uv (n, 2), PNG bytes) of a mesh textured with one texture coordinate per vertex
+    and a base-colour image; None otherwise."""
+    visual = getattr(mesh, "visual", None)
+    if mesh is None or getattr(visual, "kind", None) != "texture":
+        return None
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
+    if uv is None or image is None or len(uv) != len(mesh.vertices):
+        return None
+    buf = io.BytesIO()
+    image.convert("RGB").save(buf, format="PNG")
+    return np.asarray(uv, dtype=float), buf.getvalue()
 
 
 def read_obj_vertices(path: str | Path) -> np.ndarray:
@@ -351,8 +376,14 @@ def read_urdf(path: Path) -> tuple[str, list[Link], list[Joint]]:
                     continue
                 origin = np.eye(4) if el.origin is None else np.asarray(el.origin, dtype=float)
                 rel = resolved.relative_to(folder).as_posix()
-                target = link.visuals if kind == "visual" else link.collisions
-                target.append(make(filename=rel, origin=origin, name=el.name or ""))
+                if kind == "visual":
+                    png = Path(rel).with_suffix(".png").as_posix()
+                    texture = png if (folder / png).is_file() else None
+                    link.visuals.append(
+                        Visual(filename=rel, origin=origin, name=el.name or "", texture=texture)
+                    )
+                else:
+                    link.collisions.append(make(filename=rel, origin=origin, name=el.name or ""))
         links.append(link)
     joints = []
     for jt in robot.joints:
@@ -399,8 +430,9 @@ def mjcf_string(asset: BuiltAsset) -> str:
     """MJCF of ``asset``: the root body welded to the world, slide/hinge joints.
 
     Collision geoms are the convex pieces (group 3); each visual mesh is a
-    non-colliding geom (``contype=0 conaffinity=0``, group 1) with the link's mean
-    colour. Mesh files are the OBJ files of the layout, relative to the model file.
+    non-colliding geom (``contype=0 conaffinity=0``, group 1) with a material mapping
+    its texture (``Visual.texture``) onto the OBJ's texture coordinates, else the
+    link's mean colour. Mesh and texture files are relative to the model file.
     """
     root = etree.Element("mujoco", model=asset.id)
     etree.SubElement(root, "compiler", angle="radian", meshdir=".", autolimits="true")
@@ -409,6 +441,13 @@ def mjcf_string(asset: BuiltAsset) -> str:
         for k, v in enumerate(link.visuals):
             name = f"{link.name}_visual" if k == 0 else f"{link.name}_visual_{k}"
             etree.SubElement(assets, "mesh", name=name, file=v.obj_filename)
+            if v.texture:
+                etree.SubElement(
+                    assets, "texture", name=f"{name}_texture", type="2d", file=v.texture
+                )
+                etree.SubElement(
+                    assets, "material", name=f"{name}_material", texture=f"{name}_texture"
+                )
         for k, piece in enumerate(link.collisions):
             etree.SubElement(assets, "mesh", name=f"{link.name}_collision_{k}", file=piece.filename)
     world = etree.SubElement(root, "worldbody")
@@ -455,8 +494,11 @@ def mjcf_string(asset: BuiltAsset) -> str:
                 "conaffinity": "0",
                 "group": "1",
                 "mass": "0",
-                "rgba": vec(np.clip(link.rgba, 0, 1)),
             }
+            if v.texture:
+                attrs["material"] = f"{name}_material"
+            else:
+                attrs["rgba"] = vec(np.clip(link.rgba, 0, 1))
             etree.SubElement(body, "geom", **_geom_pose(attrs, v.origin))
         for k, piece in enumerate(link.collisions):
             attrs = {
@@ -674,14 +716,24 @@ def save_asset(asset: BuiltAsset, folder: str | Path | None = None) -> Path:
             keep.update({folder / v.filename, folder / v.obj_filename})
             if v.mesh is not None:
                 _write(folder / v.filename, mesh_to_glb(v.mesh))
-                _write(folder / v.obj_filename, obj_text(v.mesh))
+                textured = texture_image(v.mesh)
+                v.texture = None
+                if textured is not None:
+                    v.texture = Path(v.filename).with_suffix(".png").as_posix()
+                    _write(folder / v.texture, textured[1])
+                _write(
+                    folder / v.obj_filename,
+                    obj_text(v.mesh, None if textured is None else textured[0]),
+                )
+            if v.texture:
+                keep.add(folder / v.texture)
         for piece in link.collisions:
             keep.add(folder / piece.filename)
             if piece.mesh is not None:
                 _write(folder / piece.filename, obj_text(piece.mesh))
     for sub in MESH_FOLDERS:
         for old in sorted((folder / sub).glob("*")) if (folder / sub).is_dir() else []:
-            if old.is_file() and old not in keep and old.suffix in (".obj", ".glb"):
+            if old.is_file() and old not in keep and old.suffix in (".obj", ".glb", ".png"):
                 log.debug("removing stale %s", old)
                 old.unlink()
     _write(folder / URDF_NAME, urdf_string(asset))

@@ -49,13 +49,17 @@ class Visual:
     """A visual mesh file (relative to the asset folder) placed by ``origin`` (4, 4) in the link.
 
     ``mesh`` holds the geometry when it is to be written (build); it is None for an
-    asset read from disk. ``obj_filename`` is the same geometry as an OBJ for MJCF.
+    asset read from disk. ``obj_filename`` is the same geometry as an OBJ for MJCF (with
+    its texture coordinates when textured); ``texture`` the base-colour image (PNG,
+    relative to the asset folder) that the MJCF's material maps onto it, None when the
+    visual has none.
     """
 
     filename: str
     origin: np.ndarray = field(default_factory=lambda: np.eye(4))
     name: str = ""
     mesh: trimesh.Trimesh | None = None
+    texture: str | None = None
 
     @property
     def obj_filename(self) -> str:

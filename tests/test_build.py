@@ -283,6 +283,14 @@ def test_mjcf_mujoco(built):
     np.testing.assert_allclose(ranges["joint_drawer_0"], [0.0, DRAWER_UPPER])
     np.testing.assert_allclose(ranges["joint_door_0"], [0.0, DOOR_UPPER])
     assert model.ngeom == sum(result.pieces.values()) + 3  # + one visual geom per body
+    # each visual maps its texture image (visual/<part>.png) through the OBJ's texcoords
+    assert model.ntex == 3 and model.nmat == 3
+    for body in ("base", "drawer_0", "door_0"):
+        gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{body}_visual")
+        assert model.geom_matid[gid] >= 0
+        mid = model.geom_dataid[gid]
+        assert model.mesh_texcoordnum[mid] > 0
+        assert (result.directory / "visual" / f"{body}.png").is_file()
     assert (model.body_mass[1:] > 0).all()
     # the drawer slides in MuJoCo too when pushed along +x
     data = mujoco.MjData(model)
