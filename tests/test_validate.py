@@ -457,3 +457,48 @@ def test_procedural_assets_pass(tmp_path, category, seed):
     d = _build(tmp_path, category, seed)
     report = validate_asset(d, preview=False)
     assert report.ok, report.reasons
+
+
+def test_base_on_uneven_feet_gets_a_levelling_plate(tmp_path):
+    """A cabinet standing on two front feet and a rear foot 2 cm short (an artist's base
+    that rests on what it touches) tips back when free on the floor; the repair puts a
+    3 mm plate under its feet and it then stands level."""
+    import trimesh
+
+    from generator.articulated import ArticulatedObject, Joint, Part
+    from generator.procedural.solids import box
+
+    def part(name, semantic, prims, joint=None):
+        mesh = trimesh.util.concatenate([q.to_mesh() for q in prims])
+        return Part(name, semantic, mesh, joint, prims)
+
+    body = [
+        box((-0.25, -0.3, 0.05), (0.25, 0.3, 0.08)),  # bottom panel, walls and top
+        box((-0.25, -0.3, 0.08), (0.25, -0.28, 0.8)),
+        box((-0.25, 0.28, 0.08), (0.25, 0.3, 0.8)),
+        box((-0.25, -0.28, 0.08), (-0.23, 0.28, 0.8)),
+        box((-0.25, -0.3, 0.8), (0.25, 0.3, 0.82)),
+        box((0.17, -0.3, 0.0), (0.25, -0.22, 0.05)),  # two front feet
+        box((0.17, 0.22, 0.0), (0.25, 0.3, 0.05)),
+        box((-0.25, -0.04, 0.025), (-0.17, 0.04, 0.05)),  # a rear foot, 2.5 cm short
+    ]
+    door = [box((0.25, -0.28, 0.09), (0.27, 0.28, 0.79))]
+    obj = ArticulatedObject(
+        [
+            part("base", "base", body),
+            part("door_0", "door", door, Joint("revolute", (0.26, -0.28, 0.4), (0, 0, -1), 0, 1.5)),
+        ],
+        category="cabinet",
+        scale=1.0,
+    )
+    folder = save_bundle(obj, tmp_path / "cabinet_feet")
+    build_asset(folder)
+    report = validate_asset(folder, preview=False, repair=False)
+    assert _first_failed(report) == {"free_base_stable[asset]"}
+    report = validate_asset(folder, preview=False)
+    assert report.status == "repaired", report.reasons
+    assert [r.kind for r in report.repairs] == ["level_base"]
+    plate = load_asset(folder).link("base").collisions[-1]
+    assert plate.name == "base_levelling"
+    z = piece_vertices(load_asset(folder), plate)[:, 2]
+    assert z.max() - z.min() == pytest.approx(0.003, abs=1e-4)

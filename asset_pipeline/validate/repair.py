@@ -18,6 +18,8 @@ the check that triggers them:
 ``rest_penetration``   shrink the overlapping convex pieces of the movable part(s) along
                        the contact normal, about their centroid
 ``rest_drift``         raise the joint's damping and friction
+``free_base_stable``   a 3 mm plate under the base's feet (``level_base``): uneven feet
+                       stand level on it
 
 At most one joint-level repair per joint per round (the first in the order
 above), because each changes what the later checks measure. Everything else
@@ -35,7 +37,7 @@ import numpy as np
 import trimesh
 
 from ..asset_io import read_obj
-from ..built_asset import BuiltAsset
+from ..built_asset import BuiltAsset, CollisionPiece
 from .report import Check, RepairRecord, Tolerances
 
 log = logging.getLogger(__name__)
@@ -204,6 +206,52 @@ def shrink_pieces(
     return records, list(dict.fromkeys(problems))
 
 
+#: A levelling plate: under the base's collision within this height (m) of its lowest
+#: point (its feet or plinth), this thick (m), set in by this much (m) from their outline.
+LEVEL_FEET = 0.05
+LEVEL_THICKNESS = 0.003
+LEVEL_INSET = 0.002
+
+
+def level_base(asset: BuiltAsset, reason: str) -> RepairRecord | str:
+    """Give the base a thin plate under its feet (a collision piece spanning the outline
+    of its collision within ``LEVEL_FEET`` of its lowest point, its bottom at that
+    point): an artist's base that stands on uneven feet (two in front, one feature at
+    the back) rests level on it. At most once per asset."""
+    root = asset.link(asset.root)
+    name = f"{root.name}_levelling"
+    if any(p.name == name for p in root.collisions):
+        return f"{reason}; the base already stands on a levelling plate"
+    points = []
+    for piece in root.collisions:
+        if piece.mesh is None:
+            piece.mesh = read_obj(asset.path_of(piece.filename))
+        v = np.asarray(piece.mesh.vertices, dtype=float)
+        points.append(v @ piece.origin[:3, :3].T + piece.origin[:3, 3])
+    if not points:
+        return f"{reason}; the base has no collision pieces"
+    v = np.concatenate(points)
+    zmin = float(v[:, 2].min())
+    feet = v[v[:, 2] < zmin + LEVEL_FEET]
+    lo, hi = feet[:, :2].min(0) + LEVEL_INSET, feet[:, :2].max(0) - LEVEL_INSET
+    if (hi - lo).min() < 0.02:
+        return f"{reason}; the base's feet span {hi - lo} m: too narrow to level"
+    plate = trimesh.creation.box(
+        bounds=[[lo[0], lo[1], zmin], [hi[0], hi[1], zmin + LEVEL_THICKNESS]]
+    )
+    k = len(root.collisions)
+    root.collisions.append(
+        CollisionPiece(filename=f"collision/{root.name}_{k}.obj", name=name, mesh=plate)
+    )
+    return RepairRecord(
+        "level_base",
+        root.name,
+        {"lowest_z": zmin},
+        {"plate": [[*lo.tolist(), zmin], [*hi.tolist(), zmin + LEVEL_THICKNESS]]},
+        reason,
+    )
+
+
 def plan_repairs(
     asset: BuiltAsset, checks: list[Check], tol: Tolerances
 ) -> tuple[list[RepairRecord], list[str]]:
@@ -252,7 +300,13 @@ def plan_repairs(
         recs, probs = shrink_pieces(asset, pairs, f"{c.key}: {c.message}")
         records += recs
         problems += probs
-    repairable = set(REPAIR_ORDER) | {"rest_penetration"}
+    for c in by_name.get("free_base_stable", []):
+        rec = level_base(asset, f"{c.key}: {c.message}")
+        if isinstance(rec, str):
+            problems.append(rec)
+        else:
+            records.append(rec)
+    repairable = set(REPAIR_ORDER) | {"rest_penetration", "free_base_stable"}
     for c in failed:
         if c.name not in repairable:
             problems.append(f"{c.key}: no automatic repair ({c.message or 'failed'})")
