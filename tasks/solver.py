@@ -115,9 +115,8 @@ class SolverConfig:
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
-    pinch_retry: bool = True  # a grasp stopped short or not closed: again along the bar
+    pinch_retry: bool = True  # a grasp stopped short of the handle: again along the bar
     approach_blocked: float = 0.02  # m short of the grasp point that counts as stopped
-    grasp_gap_max: float = 0.05  # m between closed fingers: wider, they met no handle
     trace: bool = False  # record per-step diagnostics in SolveResult.trace
 
 
@@ -636,17 +635,14 @@ class ScriptedSolver:
             for _ in range(10):
                 do(self._action(goal, g_hold))
             short = self._errors(goal)[0]
-            if bare or (short < cfg.approach_blocked and self._finger_gap() < cfg.grasp_gap_max):
+            if bare or short < cfg.approach_blocked:
                 break
-            # the fingers met something short of the handle or could not close on it (a
-            # worktop overhanging a drawer's short pull, the drawer above): back off and
-            # come in again with them closing along the bar (a pull shorter than the
-            # 8 cm opening)
-            log.debug(
-                "grasp blocked (%.3f m short, gap %.3f m); pinching along the bar",
-                short,
-                self._finger_gap(),
-            )
+            # the fingers met something short of the handle (a worktop overhanging a
+            # drawer's short pull, the drawer above): back off and come in again with
+            # them closing along the bar (a pull shorter than the 8 cm opening). Fingers
+            # that stop wide on the handle are no sign: they often slide onto the bar
+            # once the pull starts.
+            log.debug("grasp blocked %.3f m short; pinching along the bar", short)
             across = True
         tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
         if bare:
