@@ -207,3 +207,57 @@ def test_clean_parts_on_a_debris_object():
     assert out is not obj and out.parts[0] is obj.parts[0]
     assert len(pieces(out.parts[1].mesh)) == 1 and is_closed(out.parts[1].mesh)
     out.validate()
+
+
+def test_layout_from_raw_meshes_visuals_from_clean_ones():
+    """generate's box layout comes from the raw decoded meshes and its visuals from the
+    clean ones: a drawer's visual is its clean mesh plus the layout's bar, the base's the
+    clean base plus the clean mesh of a part merged into it; collisions and joints are
+    the raw layout's."""
+    import trimesh as tm
+
+    from generator.articulated import ArticulatedObject, Joint, Part
+    from generator.box_layout import fit_box_layout
+    from generator.pact.generate import with_visuals
+
+    def box(lo, hi):
+        m = tm.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        return m
+
+    def obj(extra):
+        base = box((-0.3, -0.4, -0.5), (0.3, 0.4, 0.5))
+        drawer = box((-0.2, -0.3, 0.1), (0.3, 0.3, 0.4))
+        if extra:  # the raw mesh's stray fragment
+            drawer = tm.util.concatenate([drawer, box((0.0, 0.0, -0.3), (0.02, 0.02, -0.28))])
+        sliver = box((0.29, -0.3, -0.45), (0.3, -0.29, -0.44))  # too small: merged
+        return ArticulatedObject(
+            [
+                Part("base", "base", base),
+                Part(
+                    "drawer_1",
+                    "drawer",
+                    drawer,
+                    Joint("prismatic", (0.3, 0, 0.25), (1, 0, 0), 0, 0.3),
+                ),
+                Part(
+                    "drawer_2",
+                    "drawer",
+                    sliver,
+                    Joint("prismatic", (0.3, 0, -0.44), (1, 0, 0), 0, 0.3),
+                ),
+            ]
+        )
+
+    raw, clean = obj(True), obj(False)
+    laid = fit_box_layout(raw)
+    out = with_visuals(laid, raw, clean)
+    assert [p.name for p in out.parts] == [p.name for p in laid.parts] == ["base", "drawer_1"]
+    drawer, laid_drawer = out.part("drawer_1"), laid.part("drawer_1")
+    assert drawer.primitives is laid_drawer.primitives and drawer.joint is laid_drawer.joint
+    bar_faces = len(laid_drawer.mesh.faces) - len(raw.part("drawer_1").mesh.faces)
+    assert bar_faces > 0
+    assert len(drawer.mesh.faces) == len(clean.part("drawer_1").mesh.faces) + bar_faces
+    assert len(drawer.mesh.split(only_watertight=False)) == 2  # panel and bar
+    base_faces = len(clean.part("base").mesh.faces) + len(clean.part("drawer_2").mesh.faces)
+    assert len(out.part("base").mesh.faces) == base_faces
