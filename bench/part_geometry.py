@@ -10,8 +10,10 @@ once (``PActGenerator.run``); the decoded SDF is then meshed twice from the same
 latents (``PActGenerator.mesh_parts``): ``raw`` (the marching cubes of the decoded SDF,
 as before the clean-geometry change) and ``clean`` (the stage-1 occupancy fixes the
 topology, ``generator.pact.slat_vae.constrain_sdf``, then ``part_cleaning.clean_mesh``).
-Each is assembled (``assemble``, the network output) and given the box layout
-(``fit_box_layout``, what ``pact convert`` builds).
+Each is assembled (``assemble``, the network output) and given the box layout as
+``PActGenerator.generate`` does (what ``pact convert`` builds): ``raw`` the layout of
+the raw meshes, ``clean`` that same layout with the clean meshes as visuals
+(``generator.pact.generate.with_visuals``).
 
 Per object and mode, on the assembled object: pieces of every movable part
 (``len(mesh.split(only_watertight=False))``), whether it is one piece (a second piece
@@ -43,6 +45,7 @@ from scipy import ndimage
 from generator.articulated import ArticulatedObject, load_bundle
 from generator.box_layout import fit_box_layout
 from generator.metrics import METRIC_KEYS, MetricError, evaluate_pair
+from generator.pact.generate import with_visuals
 from generator.part_cleaning import TOUCH, groups, is_closed, is_handle, pieces
 
 MODES = ("raw", "clean")
@@ -110,13 +113,18 @@ def run_one(gen, img, mask, hints, gt=None) -> dict[str, Any]:  # noqa: ANN001
     run = gen.run(img, mask, alpha=hints.get("alpha"))
     shared = time.perf_counter() - t0 - run.timings.get("mesh", 0.0)
     out: dict[str, Any] = {"shared_s": shared}
+    raw_obj = None
     for mode in MODES:
         t = time.perf_counter()
         gen.clean_geometry = mode == "clean"
         run.meshes = gen.mesh_parts(run)
         mesh_s = time.perf_counter() - t
         obj = gen.assemble(run, hints)
-        layout = fit_box_layout(obj)
+        if mode == "raw":
+            raw_obj = obj
+            layout = fit_box_layout(obj)
+        else:  # as generate: the raw meshes' layout, the clean meshes as visuals
+            layout = with_visuals(fit_box_layout(raw_obj), raw_obj, obj)
         total = shared + time.perf_counter() - t
         row = measure(obj, run.occupancy)
         row["mesh_s"] = mesh_s
