@@ -261,3 +261,11 @@ def test_layout_from_raw_meshes_visuals_from_clean_ones():
     assert len(drawer.mesh.split(only_watertight=False)) == 2  # panel and bar
     base_faces = len(clean.part("base").mesh.faces) + len(clean.part("drawer_2").mesh.faces)
     assert len(out.part("base").mesh.faces) == base_faces
+    # a clean base reaching 2 cm below the raw one: the base's boxes reach down with it
+    # (the build stands the object on its meshes' lowest point)
+    clean.part("base").mesh.vertices[:, 2] -= (
+        clean.part("base").mesh.vertices[:, 2] < -0.49
+    ) * 0.02
+    out = with_visuals(fit_box_layout(raw), raw, clean)
+    low = min(q.transform[2, 3] - q.size[2] / 2 for q in out.part("base").primitives)
+    assert low == pytest.approx(-0.52) and out.bounds()[0][2] == pytest.approx(-0.52)

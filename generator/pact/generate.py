@@ -437,7 +437,30 @@ def with_visuals(
                 bar = p.mesh.submesh([np.arange(n, len(p.mesh.faces))], append=True)
                 mesh = trimesh.util.concatenate([c.mesh, bar])
         parts.append(Part(p.name, p.semantic, mesh, p.joint, p.primitives, p.handle, p.material))
-    return ArticulatedObject(parts, laid.category, laid.scale, dict(laid.provenance))
+    out = ArticulatedObject(parts, laid.category, laid.scale, dict(laid.provenance))
+    _floor_base_boxes(out)
+    return out
+
+
+def _floor_base_boxes(obj: ArticulatedObject) -> None:
+    """Lower the base's bottom boxes (in place) to the lowest point of the visuals: the
+    build stands an object on its meshes' lowest point, which must be where it collides
+    (a clean mesh can reach below the raw meshes' layout; the base would drop onto the
+    floor)."""
+    base = obj.parts[0]
+    boxes = [q for q in base.primitives if q.kind == "box"]
+    if not boxes:
+        return
+    bottoms = [float(q.transform[2, 3] - q.size[2] / 2) for q in boxes]
+    low, floor = min(bottoms), float(obj.bounds()[0][2])
+    if floor >= low - 1e-9:
+        return
+    for q, b in zip(boxes, bottoms, strict=True):
+        if b <= low + 1e-6:
+            drop = b - floor
+            q.size = np.array(q.size, dtype=float) + [0.0, 0.0, drop]
+            q.transform = np.array(q.transform, dtype=float)
+            q.transform[2, 3] -= drop / 2
 
 
 def _part(obj: ArticulatedObject, name: str) -> Part | None:
