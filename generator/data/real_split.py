@@ -259,6 +259,25 @@ def paint_texture(rng: np.random.Generator, px: int, colour: np.ndarray) -> np.n
     return _u8(np.asarray(colour)[None, None] * (1.0 + 0.015 * noise)[..., None])
 
 
+def _shadow_square(
+    pts: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    side: float,
+    z: float,
+    sigma: float,
+    strength: float,
+) -> tuple[Any, np.ndarray]:
+    """A horizontal square ``side`` wide at height ``z``, centred under the footprint
+    ``lo``..``hi`` (x, y), and its shading (256 px): the contact shadow of ``pts``."""
+    origin = (lo[:2] + hi[:2]) / 2 - side / 2
+    shade = footprint_shadow(pts[:, :2], origin, side, 256, sigma, strength)
+    mesh = _plane(
+        [origin[0], origin[1], z], [1, 0, 0], [0, 1, 0], (0, side), (0, side), [0, 0, 1], side
+    )
+    return mesh, shade
+
+
 def footprint_shadow(
     points_xy: np.ndarray, origin: np.ndarray, side: float, px: int, sigma: float, strength: float
 ) -> np.ndarray:
@@ -421,21 +440,11 @@ def _product_scene(rng, pts, lo, hi, size, az_deg):  # noqa: ANN001, ANN202
         )
     ]
     # contact shadow: the floor's colour darkened under the footprint, just above the floor
-    side, px = 2.0 * size, 256
-    origin = (lo[:2] + hi[:2]) / 2 - side / 2
-    shade = footprint_shadow(
-        pts[:, :2], origin, side, px, rng.uniform(0.04, 0.08) * size, rng.uniform(0.45, 0.65)
+    sigma = rng.uniform(0.04, 0.08) * size
+    mesh, shade = _shadow_square(
+        pts, lo, hi, 2.0 * size, z0 + 1e-3 * size, sigma, rng.uniform(0.45, 0.65)
     )
     tex = _u8(np.asarray(colour)[None, None] * shade[..., None])
-    mesh = _plane(
-        [origin[0], origin[1], z0 + 1e-3 * size],
-        [1, 0, 0],
-        [0, 1, 0],
-        (0, side),
-        (0, side),
-        [0, 0, 1],
-        side,
-    )
     props.append(
         Prop(
             "floor",
@@ -576,17 +585,7 @@ def _room_scene(rng, obj, pts, lo, hi, size, az_deg, eye, target, fovy):  # noqa
         )
     else:
         side = float(np.max(hi[:2] - lo[:2])) + 8 * sigma
-        origin = (lo[:2] + hi[:2]) / 2 - side / 2
-        shade = footprint_shadow(pts[:, :2], origin, side, 256, sigma, strength)
-        mesh = _plane(
-            [origin[0], origin[1], z_top + 1e-3 * size],
-            [1, 0, 0],
-            [0, 1, 0],
-            (0, side),
-            (0, side),
-            [0, 0, 1],
-            side,
-        )
+        mesh, shade = _shadow_square(pts, lo, hi, side, z_top + 1e-3 * size, sigma, strength)
         props.append(
             Prop(
                 "furniture",
