@@ -5,4 +5,6 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 [ -f /usr/share/vulkan/icd.d/lvp_icd.json ] && export VK_ICD_FILENAMES=${VK_ICD_FILENAMES:-/usr/share/vulkan/icd.d/lvp_icd.json}
 .venv/bin/ruff check --quiet .
-exec .venv/bin/python -m pytest -q "$@"
+# two workers (pytest-xdist), a test file per worker at a time: the suite's end-to-end
+# tests are mostly single-threaded; PACT_TEST_WORKERS=0 runs it in one process
+exec .venv/bin/python -m pytest -q -n "${PACT_TEST_WORKERS:-2}" --dist loadfile "$@"
