@@ -25,17 +25,12 @@ from pathlib import Path
 import trimesh
 
 from generator.articulated import ArticulatedObject, load_bundle
+from generator.mesh_repair import REMESH_RESOLUTION, MeshRepairError
 
 from .asset_io import MJCF_NAME, URDF_NAME, save_asset
 from .built_asset import BuiltAsset
 from .collision import CoacdFailed, CoacdParams, part_pieces
-from .mesh import (
-    DEFAULT_HEIGHTS,
-    REMESH_RESOLUTION,
-    MeshRepairError,
-    to_metric,
-    watertight_object,
-)
+from .mesh import DEFAULT_HEIGHTS, to_metric, watertight_object
 from .rig import PhysicsDefaults, build_rig
 from .voxel_collision import VoxelCollisionParams, articulated_boxes, box_primitive
 

@@ -383,7 +383,7 @@ def rest_transform(part: Any) -> np.ndarray:
 
 def scene_mesh(obj: ArticulatedObject) -> SceneMesh:
     """The object's part meshes at rest, in part order."""
-    from .mesh import is_closed_volume
+    from generator.mesh_repair import is_closed_volume
 
     verts, faces, owner, closed = [], [], [], []
     n = 0

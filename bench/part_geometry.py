@@ -44,9 +44,10 @@ from scipy import ndimage
 
 from generator.articulated import ArticulatedObject, load_bundle
 from generator.box_layout import fit_box_layout
+from generator.mesh_repair import is_closed
 from generator.metrics import METRIC_KEYS, MetricError, evaluate_pair
 from generator.pact.generate import with_visuals
-from generator.part_cleaning import TOUCH, groups, is_closed, is_handle, pieces
+from generator.part_cleaning import TOUCH, groups, is_handle, pieces
 
 MODES = ("raw", "clean")
 

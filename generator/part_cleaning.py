@@ -11,7 +11,9 @@ out. :func:`clean_parts` returns the object with
   is under ``FLECK`` of the part's);
 * every kept piece closed: watertight, consistently wound, positive volume; an open or
   inside-out piece is repaired in place (winding, inversion, holes) or, failing that,
-  voxel-remeshed (``voxel_remesh``), with vertex colours from the nearest old vertex.
+  voxel-remeshed, with vertex colours from the nearest old vertex
+  (:func:`generator.mesh_repair.watertight`, the toolkit the asset build closes its
+  part meshes with).
 
 A *group* is a set of mesh pieces (connected components of the face graph) that touch
 or overlap (within ``TOUCH`` of the part's size): a procedural part is a union of
@@ -34,6 +36,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from .articulated import ArticulatedObject, Part
+from .mesh_repair import MeshRepairError, is_closed, watertight
 
 log = logging.getLogger(__name__)
 
@@ -45,18 +48,6 @@ FLECK = 0.05
 HANDLE_GAP = 0.15
 #: ... and has at most this fraction of the main group's surface area.
 HANDLE_AREA = 0.5
-#: Voxel remesh of a piece that cannot be repaired: pitch = its largest extent / this.
-REMESH_RESOLUTION = 64
-
-
-def is_closed(mesh: trimesh.Trimesh) -> bool:
-    """Watertight, consistently wound, positive volume."""
-    return bool(
-        len(mesh.faces) >= 4
-        and mesh.is_watertight
-        and mesh.is_winding_consistent
-        and mesh.volume > 0
-    )
 
 
 def piece_report(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -166,58 +157,16 @@ def is_handle(main: trimesh.Trimesh, other: trimesh.Trimesh, size: float) -> boo
 
 
 def _closed_copy(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
-    """``mesh`` made closed: flipped when inside out, repaired in place, else remeshed."""
+    """``mesh`` itself when closed, else its closed copy (:func:`generator.mesh_repair.watertight`:
+    flipped when inside out, repaired in place, else voxel-remeshed); a piece not even
+    the remesh closes is kept as it is."""
     if is_closed(mesh):
         return mesh
-    out = mesh.copy()
-    if out.is_watertight and out.is_winding_consistent and out.volume < 0:
-        out.invert()
-        if is_closed(out):
-            return out
-    rep = mesh.copy()
-    rep.merge_vertices()
-    rep.update_faces(rep.nondegenerate_faces() & rep.unique_faces())
-    rep.remove_unreferenced_vertices()
-    trimesh.repair.fix_winding(rep)
-    trimesh.repair.fix_inversion(rep, multibody=True)
-    trimesh.repair.fill_holes(rep)
-    trimesh.repair.fix_winding(rep)
-    trimesh.repair.fix_inversion(rep, multibody=True)
-    if is_closed(rep):
-        return rep
-    return voxel_remesh(mesh)
-
-
-def voxel_remesh(mesh: trimesh.Trimesh, resolution: int = REMESH_RESOLUTION) -> trimesh.Trimesh:
-    """A closed surface round ``mesh``: voxelize (pitch = largest extent / resolution, at
-    most a third of the thinnest side), fill, marching cubes, colours from the nearest
-    old vertex."""
-    ext = mesh.extents
-    pitch = float(ext.max()) / resolution
-    thin = ext[ext > 0]
-    if len(thin):
-        pitch = max(min(pitch, float(thin.min()) / 3.0), float(ext.max()) / (4 * resolution))
-    vox = mesh.voxelized(pitch).fill()
-    out = vox.marching_cubes
-    out.apply_transform(vox.transform)
-    out.merge_vertices()
-    trimesh.repair.fix_winding(out)
-    trimesh.repair.fix_inversion(out, multibody=True)
-    colors = _vertex_colors(mesh)
-    if colors is not None:
-        _, idx = cKDTree(mesh.vertices).query(out.vertices)
-        out.visual = trimesh.visual.ColorVisuals(out, vertex_colors=colors[idx])
-    return out
-
-
-def _vertex_colors(mesh: trimesh.Trimesh) -> np.ndarray | None:
     try:
-        vis = mesh.visual.to_color() if mesh.visual.kind == "texture" else mesh.visual
-        if vis.kind in ("vertex", "face"):
-            return np.asarray(vis.vertex_colors, dtype=np.uint8)
-    except Exception as e:  # noqa: BLE001 - colour is cosmetic
-        log.debug("no colours to carry over: %s", e)
-    return None
+        return watertight(mesh)
+    except MeshRepairError as e:
+        log.info("clean_parts: a piece stays open: %s", e)
+        return mesh
 
 
 def _closed_group(ps: list[trimesh.Trimesh]) -> list[trimesh.Trimesh]:

@@ -1,4 +1,4 @@
-"""asset_pipeline.mesh: watertight repair / remesh and the metric step."""
+"""generator.mesh_repair (watertight repair / remesh) and asset_pipeline.mesh (the metric step)."""
 
 from __future__ import annotations
 
@@ -6,15 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline.mesh import (
-    DEFAULT_HEIGHTS,
-    is_closed_volume,
-    metric_factor,
-    remesh_pitch,
-    to_metric,
-    watertight,
-)
+from asset_pipeline.mesh import DEFAULT_HEIGHTS, metric_factor, to_metric
 from generator.articulated import ArticulatedObject, Handle, Joint, Part, Primitive
+from generator.mesh_repair import is_closed_volume, remesh_pitch, watertight
 
 
 def _stacked_boxes() -> trimesh.Trimesh:

@@ -7,9 +7,10 @@ import pytest
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
+from generator.mesh_repair import is_closed
 from generator.pact.slat_data import RESOLUTION, SUB, TRUNCATION, shell_voxels, subsample_points
 from generator.pact.slat_vae import decode_part_mesh
-from generator.part_cleaning import clean_mesh, clean_parts, is_closed, pieces
+from generator.part_cleaning import clean_mesh, clean_parts, pieces
 
 R = RESOLUTION
 VOXEL = 1.0 / R

@@ -11,9 +11,10 @@ import trimesh
 from test_photo_camera import box, cabinet, camera, render_ids
 
 from asset_pipeline.build import build_asset
-from asset_pipeline.mesh import has_texture_image, is_closed_volume, to_metric, watertight_object
+from asset_pipeline.mesh import has_texture_image, to_metric, watertight_object
 from asset_pipeline.photo_texture import bake_photo_texture
 from generator.articulated import Joint, Part, Primitive, save_bundle
+from generator.mesh_repair import is_closed_volume
 
 BACKGROUND = (20, 40, 200)  # blue: must never reach a texture that is sampled
 DRAWER = (220, 30, 30)
