@@ -517,31 +517,52 @@ def shrink_clear(
     """``box`` (2, 3) with one side moved in just enough to clear ``forbidden`` (to within
     ``max_loss`` of its extent / 2**steps), the side losing the least volume; None when
     no single side clears it within ``max_loss``."""
-    ext = box[1] - box[0]
-    best, best_loss = None, math.inf
-    for k in range(3):
-        for side in (0, 1):
+    return shrink_clear_many(
+        np.asarray(box, dtype=np.float64)[None], forbidden, margin, max_loss, steps
+    )[0]
 
-            def moved(d: float, k: int = k, side: int = side) -> np.ndarray:
-                out = box.copy()
-                out[side, k] += d if side == 0 else -d
-                return out
 
-            far = moved(max_loss * ext[k])
-            if forbidden.intersects(far[0], far[1], margin)[0]:
-                continue
-            lo_d, hi_d = 0.0, max_loss * ext[k]
-            for _ in range(steps):
-                mid = 0.5 * (lo_d + hi_d)
-                m = moved(mid)
-                if forbidden.intersects(m[0], m[1], margin)[0]:
-                    lo_d = mid
-                else:
-                    hi_d = mid
-            loss = hi_d / max(ext[k], 1e-12)
-            if loss < best_loss:
-                best, best_loss = moved(hi_d), loss
-    return best
+def shrink_clear_many(
+    boxes: np.ndarray, forbidden: HullSet, margin: float, max_loss: float = 0.5, steps: int = 10
+) -> list[np.ndarray | None]:
+    """:func:`shrink_clear` of every box of ``boxes`` (M, 2, 3): the six sides of all M
+    boxes bisected together, one ``forbidden.intersects`` call per bisection step."""
+    boxes = np.asarray(boxes, dtype=np.float64)
+    m = len(boxes)
+    if m == 0:
+        return []
+    ext = boxes[:, 1] - boxes[:, 0]  # (M, 3)
+    # the six sides in the order k = 0..2, side = 0, 1 (ties keep the first)
+    ks = np.repeat(np.arange(3), 2)
+    sides = np.tile(np.arange(2), 3)
+    sign = np.where(sides == 0, 1.0, -1.0)
+
+    def moved(d: np.ndarray) -> np.ndarray:
+        """(M, 6, 2, 3): every box with side (k, side) moved in by ``d`` (M, 6)."""
+        out = np.repeat(boxes[:, None], 6, axis=1)
+        out[:, np.arange(6), sides, ks] += sign * d
+        return out
+
+    def hits(cand: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        flat = cand.reshape(-1, 2, 3)[rows]
+        return forbidden.intersects(flat[:, 0], flat[:, 1], margin)
+
+    hi_d = max_loss * ext[:, ks]  # (M, 6)
+    lo_d = np.zeros_like(hi_d)
+    free = ~hits(moved(hi_d), np.arange(6 * m)).reshape(m, 6)
+    rows = np.flatnonzero(free.ravel())
+    for _ in range(steps):
+        if len(rows) == 0:
+            break
+        mid = 0.5 * (lo_d + hi_d)
+        hit = np.zeros((m, 6), bool)
+        hit.ravel()[rows] = hits(moved(mid), rows)
+        lo_d = np.where(free & hit, mid, lo_d)
+        hi_d = np.where(free & ~hit, mid, hi_d)
+    loss = np.where(free, hi_d / np.maximum(ext[:, ks], 1e-12), np.inf)
+    best = np.argmin(loss, axis=1)
+    final = moved(hi_d)
+    return [final[i, best[i]] if np.isfinite(loss[i, best[i]]) else None for i in range(m)]
 
 
 def refine_boxes(
@@ -563,8 +584,10 @@ def refine_boxes(
         hit = forbidden.intersects(arr[:, 0], arr[:, 1], margin)
         out += [b for b, h in zip(todo, hit, strict=True) if not h]
         todo = []
-        for b in arr[hit]:
-            trimmed = shrink_clear(b, forbidden, margin)
+        hit_boxes = arr[hit]
+        for b, trimmed in zip(
+            hit_boxes, shrink_clear_many(hit_boxes, forbidden, margin), strict=True
+        ):
             if trimmed is not None:
                 t = _tight(trimmed[0], trimmed[1], index, 0.0)
                 if t is not None:
