@@ -38,6 +38,12 @@ PATH_FRACTIONS = np.linspace(0.0, 0.9, 10)  # of the joint range
 FOLLOW_FRACTIONS = np.linspace(0.0, 0.85, 9)
 
 
+def _yaw_matrix(yaw: float) -> np.ndarray:
+    """(3, 3) rotation by ``yaw`` about +z (the robot base's frame in the object's)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
     """Rotation matrix about the unit ``axis`` by ``angle`` (Rodrigues)."""
     a = axis / np.linalg.norm(axis)
@@ -402,7 +408,48 @@ class PandaReach:
         """``clear(k, points)``: optional check that the arm's points (object frame) at
         grasp ``k`` keep off the door and the object; grasps where they do not count in
         ``self.last_hits`` (a fraction of the grasps), clear solutions are preferred.
-        ``q0``: the joints to start from (default: the ready pose)."""
+        ``q0``: the joints to start from (default: the ready pose).
+
+        A hand holding a bar cannot turn over on it: when every step offers the same
+        number of poses (the fingers closing either way round), the i-th pose of every
+        step is followed as one plan. From the ready pose every such plan is tried and the
+        one followed furthest wins (its pre-grasp joints start the arm, so the solver grasps
+        that way round); from ``q0`` (a hand already holding) only the plan whose first
+        pose is nearest the hand's orientation now."""
+        counts = {len(poses) for poses in grasps}
+        if len(counts) != 1 or counts == {1}:
+            return self._follow(base, yaw, grasps, standoff, clear, q0)
+        n = counts.pop()
+        plans = [[[poses[i]] for poses in grasps] for i in range(n)]
+        if q0 is not None:
+            self.model.compute_forward_kinematics(np.asarray(q0, dtype=float))
+            hand = self.model.get_link_pose(self.tcp)
+            from scipy.spatial.transform import Rotation
+
+            w, x, y, z = hand.q
+            R_now = _yaw_matrix(yaw) @ Rotation.from_quat([x, y, z, w]).as_matrix()
+            i = int(np.argmax([np.trace(T[:3, :3].T @ R_now) for T in grasps[0]]))
+            return self._follow(base, yaw, plans[i], standoff, clear, q0)
+        best: tuple | None = None
+        for plan in plans:
+            frac, start = self._follow(base, yaw, plan, standoff, clear, q0)
+            key = (frac, -self.last_hits)
+            if best is None or key > best[0]:
+                best = (key, frac, start, self.last_hits)
+        assert best is not None
+        self.last_hits = best[3]
+        return best[1], best[2]
+
+    def _follow(
+        self,
+        base: np.ndarray,
+        yaw: float,
+        grasps: list,
+        standoff: float,
+        clear: Any,
+        q0: np.ndarray | None,
+    ) -> tuple[float, np.ndarray | None]:
+        """:meth:`follow` with any of a step's poses allowed (the nearest clear one)."""
         c, s = np.cos(yaw), np.sin(yaw)
         to_root = np.eye(4)
         to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
