@@ -129,11 +129,12 @@ def push_waypoints_link(
     clearance: float = 0.025,
     edge_clearance: float = PUSH_EDGE_CLEARANCE,
     edge: float | None = None,
+    press_radial: float = PUSH_RADIUS,
 ) -> list[tuple[str, list[np.ndarray]]]:
     """Link-frame tcp poses (two finger orientations each) going from a let-go handle
     round the free edge to the pushing pose on the door's inner face: ``edge`` (beyond
     the free edge, in front of the face), ``behind`` (beyond it, behind the inner face)
-    and ``press`` (``PUSH_RADIUS`` of the handle's radius from the hinge, behind the
+    and ``press`` (``press_radial`` x the handle's radius from the hinge, behind the
     inner face ``depth`` metres behind the hinge plane).
 
     The closed fingers point along ``cos(tilt) * -radial + sin(tilt) * normal``: at 0
@@ -159,7 +160,7 @@ def push_waypoints_link(
     for name, radial, dep in (
         ("edge", beyond, -0.1),
         ("behind", beyond, inside),
-        ("press", PUSH_RADIUS, inside),
+        ("press", press_radial, inside),
     ):
         p = push_point_link(part, radial, dep)
         poses = []

@@ -70,6 +70,7 @@ from asset_pipeline.built_asset import BuiltAsset
 from sim_envs.asset_sources import ListSource, open_source
 from tasks.placement import (
     PUSH_MARGIN,
+    PUSH_RADIUS,
     PUSH_TILTS,
     READY_TCP,
     PandaReach,
@@ -110,6 +111,7 @@ class SolverConfig:
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
     push_retry_steps: int = 100  # steps a second push needs; fewer left: no retry
+    push_retry_radial: float = 0.55  # a second push presses this x the handle's radius out
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
@@ -356,16 +358,24 @@ class ScriptedSolver:
         return False
 
     def _push_open(
-        self, part: Any, target: float, axis: np.ndarray, do, frac, tilt: float = 0.0
+        self,
+        part: Any,
+        target: float,
+        axis: np.ndarray,
+        do,
+        frac,
+        tilt: float = 0.0,
+        radial: float = PUSH_RADIUS,
     ) -> None:
         """Let go of the handle, go round the free edge and push the inner face open
-        (the pusher tilted by ``tilt``, see :func:`tasks.placement.push_waypoints_link`)."""
+        (the pusher tilted by ``tilt``, pressing ``radial`` x the handle's radius from the
+        hinge, see :func:`tasks.placement.push_waypoints_link`)."""
         cfg = self.cfg
         _, radial_l, normal_l, _ = hinge_frame_link(part)
         depth = self._inner_face_depth(normal_l)
         edge = self._part_extent(radial_l)
         waypoints = push_waypoints_link(
-            part, tilt, depth, cfg.push_clearance, cfg.push_edge_clearance, edge
+            part, tilt, depth, cfg.push_clearance, cfg.push_edge_clearance, edge, radial
         )
 
         def nearest(poses: list) -> np.ndarray:
@@ -741,11 +751,12 @@ class ScriptedSolver:
                 self._push_open(part, target, axis_obj, do, frac, tilt)
                 if frac() < u.open_goal + cfg.goal_margin and steps_left() >= cfg.push_retry_steps:
                     # stalled short (the arm at a joint limit): push again from here
-                    # with the pusher held another way
+                    # with the pusher held another way, nearer the hinge (the hand
+                    # travels less for the same swing)
                     others = [t for t in PUSH_TILTS if t != tilt]
                     tilt = self._push_tilt(part, frac(), face_depth, others)
                     log.debug("push stalled at %.3f; again with tilt %.2f", frac(), tilt)
-                    self._push_open(part, target, axis_obj, do, frac, tilt)
+                    self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_retry_radial)
         # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
         phase = self._phase = "hold"
         hold = self._tcp()
