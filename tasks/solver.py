@@ -111,6 +111,9 @@ class SolverConfig:
     push_clearance: float = 0.025  # m between the part's inner face and the tcp line
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
     push_retry_steps: int = 100  # steps a second push needs; fewer left: no retry
+    # a push presses this x the handle's radius from the hinge: nearer the hinge than the
+    # plans' PUSH_RADIUS (0.85) that ranked the robot's base, so the hand travels less
+    push_radial: float = 0.7
     push_retry_radial: float = 0.55  # a second push presses this x the handle's radius out
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
@@ -742,13 +745,13 @@ class ScriptedSolver:
                     phase = self._phase = "push"
                     g_final = GRIPPER_CLOSED
                     tilt = self._push_tilt(part, frac(), face_depth)
-                    self._push_open(part, target, axis_obj, do, frac, tilt)
+                    self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_radial)
             elif frac() * part.range >= cfg.push_min_angle:
                 phase = self._phase = "push"
                 g_final = GRIPPER_CLOSED
                 if switch is None or frac() < switch - 0.1:  # stalled before the plan's switch
                     tilt = self._push_tilt(part, frac(), face_depth)
-                self._push_open(part, target, axis_obj, do, frac, tilt)
+                self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_radial)
                 if frac() < u.open_goal + cfg.goal_margin and steps_left() >= cfg.push_retry_steps:
                     # stalled short (the arm at a joint limit): push again from here
                     # with the pusher held another way, nearer the hinge (the hand
