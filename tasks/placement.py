@@ -451,9 +451,8 @@ class PandaReach:
         q0: np.ndarray | None,
     ) -> tuple[float, np.ndarray | None]:
         """:meth:`follow` with any of a step's poses allowed (the nearest clear one)."""
-        c, s = np.cos(yaw), np.sin(yaw)
         to_root = np.eye(4)
-        to_root[:3, :3] = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
+        to_root[:3, :3] = _yaw_matrix(yaw).T
         to_root[:3, 3] = -to_root[:3, :3] @ base
         from_root = np.linalg.inv(to_root)
         q = self.ready.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
