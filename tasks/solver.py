@@ -415,6 +415,13 @@ class ScriptedSolver:
             behind = cfg.push_home_clearance - n_w @ (home[:3, 3] - handle_w)
             if behind > 0:
                 home[:3, 3] += n_w * behind
+            # first straight out of the door's face, the hand as it is, so that the arm
+            # does not sweep the door on its way home
+            out = self._tcp()
+            out[:3, 3] += n_w * max(
+                cfg.push_home_clearance + 0.15 - n_w @ (out[:3, 3] - handle_w), 0.0
+            )
+            self._go(lambda: out, GRIPPER_CLOSED, do, tol=0.03, budget=20)
             self._go(lambda: home, GRIPPER_CLOSED, do, tol=0.03, budget=40, rot_tol=0.1)
             log.debug("push: turned at home to %.2f rad off", self._errors(home)[1])
         start = frac()
