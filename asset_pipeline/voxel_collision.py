@@ -512,21 +512,13 @@ def _tight(lo: np.ndarray, hi: np.ndarray, index: PointIndex, min_thickness: flo
 
 
 def shrink_clear(
-    box: np.ndarray, forbidden: HullSet, margin: float, max_loss: float = 0.5, steps: int = 10
-) -> np.ndarray | None:
-    """``box`` (2, 3) with one side moved in just enough to clear ``forbidden`` (to within
-    ``max_loss`` of its extent / 2**steps), the side losing the least volume; None when
-    no single side clears it within ``max_loss``."""
-    return shrink_clear_many(
-        np.asarray(box, dtype=np.float64)[None], forbidden, margin, max_loss, steps
-    )[0]
-
-
-def shrink_clear_many(
     boxes: np.ndarray, forbidden: HullSet, margin: float, max_loss: float = 0.5, steps: int = 10
 ) -> list[np.ndarray | None]:
-    """:func:`shrink_clear` of every box of ``boxes`` (M, 2, 3): the six sides of all M
-    boxes bisected together, one ``forbidden.intersects`` call per bisection step."""
+    """Per box of ``boxes`` (M, 2, 3): the box with one side moved in just enough to
+    clear ``forbidden`` (to within ``max_loss`` of its extent / 2**steps), the side losing
+    the least volume; None when no single side clears it within ``max_loss``. The six
+    sides of all M boxes are bisected together, one ``forbidden.intersects`` call per
+    bisection step."""
     boxes = np.asarray(boxes, dtype=np.float64)
     m = len(boxes)
     if m == 0:
@@ -585,9 +577,7 @@ def refine_boxes(
         out += [b for b, h in zip(todo, hit, strict=True) if not h]
         todo = []
         hit_boxes = arr[hit]
-        for b, trimmed in zip(
-            hit_boxes, shrink_clear_many(hit_boxes, forbidden, margin), strict=True
-        ):
+        for b, trimmed in zip(hit_boxes, shrink_clear(hit_boxes, forbidden, margin), strict=True):
             if trimmed is not None:
                 t = _tight(trimmed[0], trimmed[1], index, 0.0)
                 if t is not None:

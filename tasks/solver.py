@@ -70,7 +70,6 @@ from asset_pipeline.built_asset import BuiltAsset
 from sim_envs.asset_sources import ListSource, open_source
 from tasks.placement import (
     PUSH_MARGIN,
-    PUSH_RADIUS,
     PUSH_TILTS,
     READY_TCP,
     PandaReach,
@@ -112,11 +111,13 @@ class SolverConfig:
     push_max_loss: float = 0.05  # open fraction the push approach may lose before it gives up
     push_retry_steps: int = 100  # steps a second push needs; fewer left: no retry
     # a push presses this x the handle's radius from the hinge: nearer the hinge than the
-    # plans' PUSH_RADIUS (0.85) that ranked the robot's base, so the hand travels less
+    # plans' tasks.placement.PUSH_RADIUS (0.85) that ranked the robot's base, so the hand
+    # travels less
     push_radial: float = 0.7
     push_retry_radial: float = 0.55  # a second push presses this x the handle's radius out
     push_turn_tol: float = 0.3  # rad: a hand not turned this near for the push turns at home
     push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
+    push_out_clearance: float = 0.25  # m in front of it the hand first backs straight out to
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
@@ -367,8 +368,8 @@ class ScriptedSolver:
         axis: np.ndarray,
         do,
         frac,
-        tilt: float = 0.0,
-        radial: float = PUSH_RADIUS,
+        tilt: float,
+        radial: float,
     ) -> None:
         """Let go of the handle, go round the free edge and push the inner face open
         (the pusher tilted by ``tilt``, pressing ``radial`` x the handle's radius from the
@@ -418,9 +419,7 @@ class ScriptedSolver:
             # first straight out of the door's face, the hand as it is, so that the arm
             # does not sweep the door on its way home
             out = self._tcp()
-            out[:3, 3] += n_w * max(
-                cfg.push_home_clearance + 0.15 - n_w @ (out[:3, 3] - handle_w), 0.0
-            )
+            out[:3, 3] += n_w * max(cfg.push_out_clearance - n_w @ (out[:3, 3] - handle_w), 0.0)
             self._go(lambda: out, GRIPPER_CLOSED, do, tol=0.03, budget=20)
             self._go(lambda: home, GRIPPER_CLOSED, do, tol=0.03, budget=40, rot_tol=0.1)
             log.debug("push: turned at home to %.2f rad off", self._errors(home)[1])
