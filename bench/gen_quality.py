@@ -4,7 +4,7 @@
         [--split-dir runs/test_split] [--no-mask]
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
-        [--categories microwave oven ...] [--styles product room]
+        [--categories microwave oven ...] [--styles product room] [--weights FOLDER]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -48,14 +48,16 @@ from generator.metrics import METRIC_KEYS, MetricError, evaluate_dirs, evaluate_
 GENERATORS = ("pact", "retrieval")
 
 
-def load_generator(name: str):  # noqa: ANN201
+def load_generator(name: str, weights: Path | None = None):  # noqa: ANN201
+    """The generator ``name``; PAct from ``weights`` (a folder laid out as
+    generator/pact/weights/small) when given, else the shipped small model."""
     if name == "retrieval":
         from generator.retrieval import RetrievalGenerator
 
         return RetrievalGenerator.default()
     from generator.pact.generate import PActGenerator
 
-    return PActGenerator.default()
+    return PActGenerator.default() if weights is None else PActGenerator.load(weights)
 
 
 def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool):  # noqa: ANN202
@@ -120,9 +122,11 @@ def evaluate_images(
 
 def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
     """Generate from every image of the split with generator ``name``; the run's JSON."""
-    gen = load_generator(name)
+    weights = args.weights if name == "pact" else None
+    gen = load_generator(name, weights)
     tag = (
         f"pred-{name}"
+        + (f"-{weights.name}" if weights is not None else "")
         + ("-nomask" if args.no_mask else "")
         + ("-hint" if args.category_hint else "")
     )
@@ -149,6 +153,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         results = evaluate_images(pred_dir, split_dir, images)
         out = {
             "generator": name,
+            "weights": None if weights is None else str(weights),
             "split": "real",
             "split_dir": str(split_dir),
             "mask": not args.no_mask,
@@ -167,6 +172,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         results = evaluate_dirs(pred_dir, split_dir / "gt")
         out = {
             "generator": name,
+            "weights": None if weights is None else str(weights),
             "mask": not args.no_mask,
             "objects": len(ids),
             "seconds_per_object_median": statistics.median(seconds),
@@ -232,6 +238,13 @@ def main() -> None:
     ap.add_argument("--styles", nargs="+", default=None, help="Real split: product and/or room.")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument("--category-hint", action="store_true")
+    ap.add_argument(
+        "--weights",
+        type=Path,
+        default=None,
+        help="PAct weights folder (laid out as generator/pact/weights/small); predictions "
+        "go to pred-pact-<folder name>",
+    )
     args = ap.parse_args()
 
     split_dir = args.split_dir or (

@@ -166,9 +166,11 @@ def test_vae_resume_is_bit_exact_and_logs(tiny, tmp_path):
 
 
 def test_flow_resume_is_bit_exact(tiny, trained_vae, tmp_path):
+    """With the input augmentation on: its draws are keyed by step as well."""
     data, cfg = tiny
     vae_dir = str(trained_vae / "vae/checkpoint/ss_vae")
-    kw = dict(FAST, vae_dir=vae_dir)
+    aug = dict(aug_recolor=0.5, aug_photometric=0.5, aug_rgb_dropout=0.5, aug_mask_noise=0.5)
+    kw = dict(FAST, vae_dir=vae_dir, **aug)
     full = train_stage1(data, tmp_path / "a", str(cfg), "flow", steps=4, **kw)
     train_stage1(data, tmp_path / "b", str(cfg), "flow", steps=4, stop_after=2, **kw)
     resumed = train_stage1(data, tmp_path / "b", str(cfg), "flow", steps=4, **kw)

@@ -51,6 +51,7 @@ import torch.distributed as dist
 import torch.nn as nn
 import torch.nn.functional as F
 
+from .augment import AugmentConfig, augment_inputs
 from .checkpoint import check_output_dir, load_checkpoint, save_checkpoint
 from .data import Stage1Dataset
 from .flow import flow_loss
@@ -98,6 +99,11 @@ class Args:
     limit_objects: int | None = None  # use only the first N objects (tests)
     vae_dir: str | None = None  # frozen VAE for the flow; None: <out>/vae/checkpoint/ss_vae
     init_from: str | None = None  # flow, new run: start from this stage-1 folder's weights
+    # flow: input augmentation (generator/pact/augment.py), probabilities per sample
+    aug_recolor: float = 0.0  # a random tint per part
+    aug_photometric: float = 0.0  # brightness, contrast, saturation
+    aug_rgb_dropout: float = 0.0  # the object one flat colour: only silhouette and mask left
+    aug_mask_noise: float = 0.0  # ragged mask edges, as a SAM-style mask has
     write_shipped_weights: bool = False  # allow out_dir inside generator/pact/weights/
 
 
@@ -609,6 +615,13 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
             )
         barrier(d)
 
+    augment = AugmentConfig(
+        recolor=args.aug_recolor,
+        photometric=args.aug_photometric,
+        rgb_dropout=args.aug_rgb_dropout,
+        mask_noise=args.aug_mask_noise,
+        max_parts=T,
+    )
     t0 = t_log = time.time()
     encoder.train(), flow.train()
     while step < total:
@@ -616,6 +629,10 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
             len(train_ds), (B * d.world,), generator=step_generator(args.seed, step, 0)
         )
         batch = train_ds.batch(pick[d.rank * B : (d.rank + 1) * B].tolist())
+        if augment.active:
+            batch["image"], batch["mask"] = augment_inputs(
+                batch["image"], batch["mask"], augment, step_generator(args.seed, step, 3, d.rank)
+            )
         x0 = cache[batch["object"]].to(d.device)  # (B, T, C, r, r, r)
 
         for g in opt.param_groups:
