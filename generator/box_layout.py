@@ -39,7 +39,10 @@ meshes as the visuals:
    greedily into boxes.
 5. Fixed parts are merged into the base, and so is a movable part whose box ends up
    thinner than ``MIN_SIZE_M`` or with a face narrower than ``MIN_FACE_M`` (nothing a
-   gripper could open; its cavity is not cut).
+   gripper could open; its cavity is not cut). A face narrower than that along one side
+   only, and at least twice as wide along the other (a shallow drawer the generator's
+   grid draws a voxel or two tall), is first widened to ``MIN_FACE_M`` about its middle
+   (before step 2).
 6. A part that opens toward +x, +y or +z and has no modelled handle gets the procedural
    factory's bar handle (``HANDLE_M``): centred on a drawer's face along its longer
    side, on a door parallel to the hinge near the free edge. The bar is part of the
@@ -244,6 +247,27 @@ def _separate(a: _Movable, b: _Movable, gap: float, min_face: float) -> None:
     (a.lo[k], a.hi[k]), (b.lo[k], b.hi[k]) = splits[k]
 
 
+def _widen_shallow_front(m: _Movable, min_face: float, outer: np.ndarray) -> None:
+    """A face narrower than ``min_face`` along one side but at least twice that wide
+    along the other (a shallow drawer, a flap: a part of the photo's mask that the
+    generator's grid draws a voxel or two tall) is widened to ``min_face`` about its
+    middle along the narrow side, inside the object's outer box (in place). A face
+    narrow both ways (knob-sized) is left for the size check to merge."""
+    lateral = [k for k in range(3) if k != m.normal_axis]
+    size = m.hi - m.lo
+    narrow = [k for k in lateral if size[k] < min_face]
+    if len(narrow) != 1:
+        return
+    k = narrow[0]
+    wide = lateral[1 - lateral.index(k)]
+    if size[wide] < 2 * min_face or size[k] <= 0:
+        return
+    mid = float(
+        np.clip((m.lo[k] + m.hi[k]) / 2, outer[0, k] + min_face / 2, outer[1, k] - min_face / 2)
+    )
+    m.lo[k], m.hi[k] = mid - min_face / 2, mid + min_face / 2
+
+
 def _base_boxes(
     outer_lo: np.ndarray,
     outer_hi: np.ndarray,
@@ -318,6 +342,8 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
             m.hi[n] = min(m.hi[n], outer_hi[n] - BACK_WALL * depth)
             if m.lo[n] - outer_lo[n] <= FLUSH * depth:
                 m.lo[n] = outer_lo[n]
+    for m in moving:
+        _widen_shallow_front(m, min_face, outer)
     for a, b in itertools.combinations(moving, 2):
         _separate(a, b, gap, min_face)
 
@@ -325,7 +351,9 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
     dropped: list[Part] = list(fixed)
     for m in moving:
         size = m.hi - m.lo
-        if np.any(size < min_size) or np.any(np.delete(size, m.normal_axis) < min_face):
+        if np.any(size < min_size) or np.any(
+            np.delete(size, m.normal_axis) < min_face * (1 - 1e-9)
+        ):
             log.info("box layout: part %s is too small %s; merged into the base", m.part.name, size)
             dropped.append(m.part)
         else:

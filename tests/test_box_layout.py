@@ -10,7 +10,14 @@ import pytest
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
-from generator.box_layout import HANDLE_M, MAX_SLIDE, _base_boxes, fit_box_layout, robust_bounds
+from generator.box_layout import (
+    HANDLE_M,
+    MAX_SLIDE,
+    MIN_FACE_M,
+    _base_boxes,
+    fit_box_layout,
+    robust_bounds,
+)
 
 GAP = 0.01
 
@@ -183,6 +190,27 @@ def test_parts_too_thin_or_too_small_to_open_are_merged_into_the_base():
     out = fit_box_layout(ArticulatedObject([_base(), flap, knob, keep], scale=1.0), clearance=GAP)
     assert [p.name for p in out.parts] == ["base", "drawer_3"]
     assert len(out.parts[0].mesh.vertices) == 24  # the dropped parts' meshes join the base
+
+
+def test_a_shallow_drawer_is_widened_to_the_smallest_face_not_merged():
+    """scale = 1: a drawer 30 cm wide but 3 cm tall (a row of the generator's grid) keeps
+    its place, its face widened to MIN_FACE_M about its middle; its cavity is cut."""
+    shallow = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.0, -0.15, 0.2), (0.3, 0.15, 0.23)),
+        Joint("prismatic", [0.3, 0, 0.215], [1, 0, 0], 0.0, 0.2),
+    )
+    out = fit_box_layout(ArticulatedObject([_base(), shallow], scale=1.0), clearance=GAP)
+    assert [p.name for p in out.parts] == ["base", "drawer_1"]
+    b = _bounds(out.parts[1])
+    assert b[1, 2] - b[0, 2] == pytest.approx(MIN_FACE_M)
+    assert (b[0, 2] + b[1, 2]) / 2 == pytest.approx(0.215)
+    assert b[1, 1] - b[0, 1] == pytest.approx(0.3)
+    for prim in out.parts[0].primitives:  # no base box in the widened drawer's slot
+        c, size = prim.transform[:3, 3], prim.size
+        lo, hi = c - size / 2, c + size / 2
+        assert np.any(hi <= b[0] + 1e-9) or np.any(lo >= b[1] - 1e-9)
 
 
 @pytest.mark.slow

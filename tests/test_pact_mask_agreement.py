@@ -6,7 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generator.pact.mask_agreement import agreement, carve_missing, id_iou, mask_ids, view_rotation
+from generator.pact.mask_agreement import (
+    agreement,
+    carve_missing,
+    id_iou,
+    mask_ids,
+    relabel_front,
+    render_ids,
+    surface_points,
+    view_rotation,
+)
 from generator.pact.stage1_generator import Stage1Generator
 
 R = 16
@@ -100,3 +109,49 @@ def test_carve_missing_takes_the_base_behind_the_parts_mask_pixels():
     no_base = occ.copy()
     no_base[0] = False
     assert not carve_missing(no_base, _front_mask(), [2])[2].any()
+
+
+def _stacked_drawers(R: int = 32) -> np.ndarray:
+    """A block (slot 0) with two drawer fronts 4 voxels deep: slot 1 on top, slot 2 below."""
+    occ = np.zeros((3, R, R, R), bool)
+    occ[0, 4:24, 2:30, 2:30] = True
+    occ[1, 20:24, 4:28, 16:28] = True
+    occ[2, 20:24, 4:28, 4:15] = True
+    occ[0] &= ~(occ[1] | occ[2])
+    return occ
+
+
+def test_relabel_front_moves_parts_to_where_the_mask_puts_them():
+    gt = _stacked_drawers()
+    pts, labels, _ = surface_points(gt)
+    sample = np.zeros_like(gt)  # the right row count, the wrong layout: side by side
+    sample[0] = gt.any(axis=0)
+    sample[1, 20:24, 4:16, 4:28] = True
+    sample[2, 20:24, 16:28, 4:28] = True
+    sample[0] &= ~(sample[1] | sample[2])
+    for az, el in [(0, 0), (20, 20), (-50, 10)]:
+        mask = render_ids(pts, labels, view_rotation(np.radians(az), np.radians(el)), 80)
+        out = relabel_front(sample, mask, [0, 1, 2])
+        assert np.array_equal(out.any(axis=0), sample.any(axis=0))  # same union
+        assert out.sum(axis=0).max() == 1  # disjoint
+        for k in (1, 2):  # footprints on the front: exact head-on, close when oblique
+            a, b = out[k].any(axis=0), gt[k].any(axis=0)
+            iou = (a & b).sum() / (a | b).sum()
+            assert iou == 1.0 if (az, el) == (0, 0) else iou > 0.8
+        assert out[1, 20:24].any() and not out[1, :20].any()  # as deep as the sample's part
+        assert agreement(out, mask) > agreement(sample, mask) + 0.3
+    assert not sample[1, 20:24, 16:28].any()  # the input is left alone
+
+
+def test_relabel_front_keeps_a_sample_it_cannot_improve():
+    gt = _stacked_drawers()
+    pts, labels, _ = surface_points(gt)
+    mask = render_ids(pts, labels, view_rotation(0.0, 0.0), 80)
+    assert np.array_equal(relabel_front(gt, mask, [0, 1, 2]), gt)  # already right
+    no_parts = np.zeros_like(gt)
+    no_parts[0] = gt.any(axis=0)
+    assert np.array_equal(relabel_front(no_parts, mask, [0]), no_parts)  # only the base
+    # a mask that gives part 2 no front column would empty it: the sample is kept
+    one_part = np.where(mask == 3, 1, mask)
+    sample = gt.copy()
+    assert np.array_equal(relabel_front(sample, one_part, [0, 1, 2]), gt)

@@ -27,8 +27,9 @@ no sample does), the one whose parts agree best with the mask when rendered
 that leaves one of its parts empty (the small model does for about one object in six)
 or puts a drawer in the wrong row is wrong whatever its other parts look like. A part
 the mask shows that the kept sample still leaves empty is carved out of the base where
-the mask puts it (``mask_agreement.carve_missing``). Without a mask there is nothing to
-check against, and one sample is drawn.
+the mask puts it (``mask_agreement.carve_missing``), and the movable parts on the front
+are relabelled after the mask (``mask_agreement.relabel_front``). Without a mask there is
+nothing to check against, and one sample is drawn.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from generator.part_cleaning import clean_parts
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .mask_agreement import agreement, carve_missing
+from .mask_agreement import agreement, carve_missing, relabel_front
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
@@ -274,10 +275,12 @@ class Stage1Generator:
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
-        for b, slots in enumerate(shown):  # parts the mask shows, left empty: carved
-            if not exists[b, slots].all():
+        for b, slots in enumerate(shown):
+            if not exists[b, slots].all():  # parts the mask shows, left empty: carved
                 occ[b] = carve_missing(occ[b], masks[b], slots)
-                exists[b] = occ[b].reshape(T, -1).any(axis=1)
+            occ[b] = relabel_front(occ[b], masks[b], slots)  # the front after the mask
+            ids = np.array([0, 1, *[k + 1 for k in slots]])
+            occ[b], exists[b] = tidy_parts(occ[b], occ[b].reshape(T, -1).any(axis=1), ids)
         return occ, exists
 
     @staticmethod
