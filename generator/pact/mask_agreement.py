@@ -31,6 +31,10 @@ GRID = 40  # G: the side of the compared id images, in pixels
 PIXEL_MIN = 0.7  # voxels: the smallest pixel a sample is rendered with
 COLUMN_GRID = 160  # pixels: the side of the mask image the front's columns are read from
 MISPLACED_IOU = 0.7  # a part overlapping its mask pixels less than this is moved
+#: (short, long) voxels across the front that a moved part keeps, else it is not moved:
+#: on the 32-voxel grid of a unit object, the box layout's 5 cm smallest face (10 cm for
+#: the other side of a shallow one) at an object's typical 1-1.5 m
+MIN_FRONT_VOXELS = (2, 4)
 CARVE_DEPTH = 2  # voxels: depth of a carved part when no other movable part sets it
 AZIMUTHS_DEG = (-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0)
 ELEVATIONS_DEG = (0.0, 10.0, 20.0, 30.0, 40.0)
@@ -220,6 +224,85 @@ def _front_columns(union: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return yz, front
 
 
+def _move_parts(
+    occ: np.ndarray,
+    movable: list[int],
+    moved: list[int],
+    yz: np.ndarray,
+    front: np.ndarray,
+    column_id: np.ndarray,
+    depths: dict[int, int],
+) -> np.ndarray:
+    """``relabel_front``'s move: the parts in ``moved`` leave the columns the mask gives
+    elsewhere (to the base) and take, in each of their own columns, the unbroken run of
+    occupied voxels from the front back, at most ``depths[k]`` deep (a drawer's front
+    panel, and its sides and bottom where they continue it; not a separate piece behind
+    it), of which the piece reaching furthest to the front is kept (the rest goes to the
+    base); the other movable parts' voxels are never taken."""
+    union = occ.any(axis=0)
+    kept = np.zeros(union.shape, bool)  # voxels of the parts placed well
+    for k in movable:
+        if k not in moved:
+            kept |= occ[k]
+    out = occ.copy()
+    col_of = np.full(union.shape[1:], -1, np.int64)  # (y, z) -> mask id of the column
+    col_of[yz[:, 0], yz[:, 1]] = column_id
+    for k in moved:
+        wrong = out[k] & (col_of[None] != k + 1)
+        out[0] |= wrong
+        out[k] &= ~wrong
+    free = union & ~kept
+    for k in moved:
+        sel = column_id == k + 1
+        if not sel.any():
+            continue
+        cy, cz, cf = yz[sel, 0], yz[sel, 1], front[sel]
+        t = np.arange(depths[k])
+        x = cf[:, None] - t[None, :]  # (n, d): from the front back
+        inside = x >= 0
+        run = np.cumprod(inside & free[np.maximum(x, 0), cy[:, None], cz[:, None]], axis=1)
+        i, j = np.nonzero(run)  # the unbroken run of voxels from the front, per column
+        x, y, z = x[i, j], cy[i], cz[i]
+        out[:, x, y, z] = False
+        out[k, x, y, z] = True
+        front_piece = _frontmost_piece(out[k])
+        out[0] |= out[k] & ~front_piece
+        out[k] = front_piece
+    return out
+
+
+def _frontmost_piece(part: np.ndarray) -> np.ndarray:
+    """The 26-connected piece of a part occupancy (R, R, R) that reaches furthest to the
+    front (+x; the larger on a tie): a moved part is one rigid piece on the front."""
+    from scipy import ndimage
+
+    labels, n = ndimage.label(part, structure=np.ones((3, 3, 3), bool))
+    if n <= 1:
+        return part.copy()
+    idx = np.argwhere(labels)
+    lab = labels[tuple(idx.T)]
+    reach = np.full(n + 1, -1)
+    np.maximum.at(reach, lab, idx[:, 0])
+    size = np.bincount(lab, minlength=n + 1)
+    best = max(range(1, n + 1), key=lambda i: (reach[i], size[i]))
+    return labels == best
+
+
+def _openable(part: np.ndarray) -> bool:
+    """Whether a part occupancy (R, R, R) keeps, in its largest 26-connected piece (what
+    ``stage1.tidy_parts`` keeps), a front of at least ``MIN_FRONT_VOXELS`` (short side,
+    long side) voxels: less is a face the box layout merges into the base."""
+    from scipy import ndimage
+
+    labels, n = ndimage.label(part, structure=np.ones((3, 3, 3), bool))
+    if n == 0:
+        return False
+    largest = labels == int(np.argmax(np.bincount(labels.ravel())[1:])) + 1
+    idx = np.argwhere(largest)
+    ext = sorted(int(np.ptp(idx[:, a])) + 1 for a in (1, 2))  # across the front (y, z)
+    return ext[0] >= MIN_FRONT_VOXELS[0] and ext[1] >= MIN_FRONT_VOXELS[1]
+
+
 def relabel_front(
     occ: np.ndarray,
     mask: np.ndarray,
@@ -240,11 +323,13 @@ def relabel_front(
     into the mask (cropped as the render is, resampled to ``COLUMN_GRID`` pixels: a
     drawer a few voxels tall keeps its rows): the id there labels the column. A
     misplaced part loses its voxels in columns the mask gives to something else (they go
-    to the base) and takes, in the columns the mask gives it, the occupied voxels from
-    the front as deep as it is in the sample (its x extent; the median of the other
+    to the base) and takes, in the columns the mask gives it, the unbroken run of
+    occupied voxels from the front, at most as deep as it is in the sample (its x extent; the median of the other
     movable parts when it is empty, ``depth`` voxels when all are; at most
-    ``max_depth_share`` of the object's depth). Parts placed well enough are left
-    alone: their voxels are neither moved nor taken (the orthographic views and the
+    ``max_depth_share`` of the object's depth). A part that would keep less than
+    ``MIN_FRONT_VOXELS`` across the front (a drawer the mask draws a voxel tall) is not
+    moved. Parts placed well enough are left alone: their voxels are neither moved nor
+    taken (the orthographic views and the
     coarse grid make a right layout score only about 0.66, and a part a voxel or two
     tall does not survive a relabelling). Parts stay disjoint and their union does not
     change.
@@ -279,34 +364,19 @@ def relabel_front(
     uv = np.clip(uv.astype(np.int64), 0, fine - 1)
     column_id = target[uv[:, 1], uv[:, 0]]  # mask id per column
 
-    xs = np.arange(occ.shape[1])
     object_depth = int(np.ptp(np.argwhere(union)[:, 0])) + 1
     extents = {k: int(np.ptp(np.argwhere(occ[k])[:, 0])) + 1 for k in movable if occ[k].any()}
     fallback = int(np.median(list(extents.values()))) if extents else depth
     cap = max(1, int(max_depth_share * object_depth))
-    kept = np.zeros(union.shape, bool)  # voxels of the parts placed well: never taken
-    for k in movable:
-        if k not in moved:
-            kept |= occ[k]
-    out = occ.copy()
-    col_of = np.full(union.shape[1:], -1, np.int64)  # (y, z) -> mask id of the column
-    col_of[yz[:, 0], yz[:, 1]] = column_id
-    for k in moved:  # its voxels in columns the mask gives elsewhere: to the base
-        wrong = out[k] & (col_of[None] != k + 1)
-        out[0] |= wrong
-        out[k] &= ~wrong
-    for k in moved:
-        d = min(extents.get(k, fallback), cap)
-        sel = column_id == k + 1
-        if not sel.any():
-            continue
-        cy, cz, cf = yz[sel, 0], yz[sel, 1], front[sel]
-        band = (xs[None, :] <= cf[:, None]) & (xs[None, :] > cf[:, None] - d)  # (n, R)
-        cells = (union & ~kept)[:, cy, cz].T & band
-        i, x = np.nonzero(cells)
-        y, z = cy[i], cz[i]
-        out[:, x, y, z] = False
-        out[k, x, y, z] = True
+    depths = {k: min(extents.get(k, fallback), cap) for k in moved}
+    while True:  # a part the mask's region makes too small to open stays where it was
+        out = _move_parts(occ, movable, moved, yz, front, column_id, depths)
+        small = [k for k in moved if occ[k].any() and not _openable(out[k])]
+        if not small:
+            break
+        moved = [k for k in moved if k not in small]
+        if not moved:
+            return occ
     had = [k for k in movable if occ[k].any()]
     if any(not out[k].any() for k in had):
         return occ
