@@ -502,3 +502,48 @@ def test_base_on_uneven_feet_gets_a_levelling_plate(tmp_path):
     assert plate.name == "base_levelling"
     z = piece_vertices(load_asset(folder), plate)[:, 2]
     assert z.max() - z.min() == pytest.approx(0.003, abs=1e-4)
+
+
+def test_a_deep_narrow_door_hinged_at_the_side_opens_outward(tmp_path):
+    """A door 9 cm deep and 12 cm wide, hinged at the object's side (what a generator
+    makes of a narrow panel): opening first moves its centroid sideways, toward the
+    base's centre, but its free edge leaves the front. It passes ``opens_outward`` and
+    is not flipped; the same door with its axis inverted still fails."""
+    import trimesh
+
+    from generator.articulated import ArticulatedObject, Joint, Part
+    from generator.box_layout import fit_box_layout
+
+    def box(lo, hi):
+        m = trimesh.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        return m
+
+    base = Part("base", "base", box((-0.2, -0.4, -0.45), (0.2, 0.4, 0.45)))
+    door = Part(
+        "door_1",
+        "door",
+        box((0.11, -0.4, -0.15), (0.2, -0.28, 0.15)),
+        Joint("revolute", (0.2, -0.4, 0.0), (0, 0, -1), 0.0, 1.2),
+    )
+    obj = fit_box_layout(ArticulatedObject([base, door], category="cabinet", scale=1.0))
+    d = save_bundle(obj, tmp_path / "side_door")
+    build_asset(d)
+    report = validate_asset(d, repair=False, preview=False)
+    assert "opens_outward[joint_door_1]" not in _first_failed(report), report.reasons
+    _edit_urdf(
+        d,
+        lambda r: (
+            _joint(r, "joint_door_1")
+            .find("axis")
+            .set(
+                "xyz",
+                " ".join(
+                    str(-float(v))
+                    for v in _joint(r, "joint_door_1").find("axis").get("xyz").split()
+                ),
+            )
+        ),
+    )
+    report = validate_asset(d, repair=False, preview=False)
+    assert "opens_outward[joint_door_1]" in _first_failed(report)

@@ -158,6 +158,11 @@ def kinematic_checks(asset: BuiltAsset, tol: Tolerances) -> list[Check]:
     base = asset.roots[0] if asset.roots else None
     base_centroid = link_centroid(pieces.get(base, [])) if base else np.zeros(3)
     base_all = np.concatenate([v for v in pieces.get(base, []) if len(v)] or [np.zeros((1, 3))])
+    closed_poses = asset.link_poses(closed)
+    all_closed = np.concatenate(
+        [_transform(closed_poses[n], v) for n, vs in pieces.items() for v in vs if len(v)]
+        or [np.zeros((1, 3))]
+    )
     for j in movable:
         if not (math.isfinite(j.lower) and math.isfinite(j.upper) and j.lower < j.upper):
             continue  # already failed statically; a sweep would be meaningless
@@ -202,23 +207,56 @@ def kinematic_checks(asset: BuiltAsset, tol: Tolerances) -> list[Check]:
             )
         # at least the full opening must move away; a first step inward is also a fault
         ok = increase[1] > tol.outward_min and increase[0] > -tol.outward_min
+        value, message = increase[1], "opening moves the part toward the base's centre"
+        details = {"increase_at_10pct": increase[0], "increase_at_upper": increase[1]}
+        if j.type == "revolute":  # a hinged part: its reach out of the closed object
+            value = _swings_out(j, asset, child, closed, all_closed)
+            ok = value > tol.outward_min
+            message = "opening swings the part into the object, not out of it"
+            details["reach_out_minus_reversed"] = value
         checks.append(
             Check(
                 "opens_outward",
                 "kinematic",
                 j.name,
                 ok,
-                value=increase[1],
+                value=value,
                 tolerance=tol.outward_min,
-                message=""
-                if ok
-                else "opening moves the part toward the base's centre (axis inverted?)",
-                details={"increase_at_10pct": increase[0], "increase_at_upper": increase[1]},
+                message="" if ok else f"{message} (axis inverted?)",
+                details=details,
             )
         )
         if j.type == "prismatic":
             checks.append(_engagement_check(j, asset, child, base_all, opened, closed, tol))
     return checks
+
+
+def _swings_out(
+    j: Joint,
+    asset: BuiltAsset,
+    child: list[np.ndarray],
+    closed: Mapping[str, float],
+    all_closed: np.ndarray,
+) -> float:
+    """How much further a hinged part reaches out of the closed object's bounding box
+    (``all_closed``: every piece's vertices at rest) fully opened than it would swung as
+    far the other way (mean over its vertices, m): positive when it opens out of the
+    object. The centroid's distance from the base's centroid, which decides for a
+    sliding part, misjudges a deep, narrow door hinged at the object's side both ways:
+    opened right its centroid first moves sideways, toward the base's centre, while
+    its free edge leaves the front; opened the wrong way, into the base, its centroid
+    moves away sideways."""
+    lo, hi = all_closed.min(axis=0), all_closed.max(axis=0)
+    pts = np.concatenate(child)
+
+    def outside(q: float) -> float:
+        qpos = dict(closed)
+        qpos[j.name] = q
+        p = _transform(asset.link_poses(qpos)[j.child], pts)
+        gap = np.maximum(lo - p, 0.0) + np.maximum(p - hi, 0.0)
+        return float(np.linalg.norm(gap, axis=1).mean())
+
+    return outside(j.upper) - outside(j.lower - (j.upper - j.lower))
 
 
 def _engagement_check(

@@ -237,8 +237,9 @@ def _move_parts(
     elsewhere (to the base) and take, in each of their own columns, the unbroken run of
     occupied voxels from the front back, at most ``depths[k]`` deep (a drawer's front
     panel, and its sides and bottom where they continue it; not a separate piece behind
-    it), of which the piece reaching furthest to the front is kept (the rest goes to the
-    base); the other movable parts' voxels are never taken."""
+    it; in a column on the rim of the object's front, where the base's own wall runs
+    back, only as deep as in its inner columns), of which the piece reaching furthest
+    to the front is kept (the rest goes to the base); the other movable parts' voxels are never taken."""
     union = occ.any(axis=0)
     kept = np.zeros(union.shape, bool)  # voxels of the parts placed well
     for k in movable:
@@ -252,6 +253,9 @@ def _move_parts(
         out[0] |= wrong
         out[k] &= ~wrong
     free = union & ~kept
+    cols = union.any(axis=0)  # the object's front footprint (y, z)
+    p = np.pad(cols, 1)
+    footprint_inner = cols & p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
     for k in moved:
         sel = column_id == k + 1
         if not sel.any():
@@ -261,6 +265,12 @@ def _move_parts(
         x = cf[:, None] - t[None, :]  # (n, d): from the front back
         inside = x >= 0
         run = np.cumprod(inside & free[np.maximum(x, 0), cy[:, None], cz[:, None]], axis=1)
+        # a column on the rim of the object's front is the base's side, top or bottom
+        # wall running back: there the part is only as deep as in its inner columns
+        rim = ~footprint_inner[cy, cz]
+        inner_runs = run[~rim].sum(axis=1)
+        cap = int(np.median(inner_runs)) if len(inner_runs) else 1
+        run[rim, max(cap, 1) :] = 0
         i, j = np.nonzero(run)  # the unbroken run of voxels from the front, per column
         x, y, z = x[i, j], cy[i], cz[i]
         out[:, x, y, z] = False
