@@ -25,8 +25,9 @@ meshes as the visuals:
    the middle of the overlap with a gap of ``clearance``, or, when one box contains the
    other along that axis, the outer one trimmed to its larger side. A revolute part's free edge sweeps
    ``sqrt(t^2 + w^2) - w`` past its box (thickness t, width w); that is added to the
-   gap on its free side. Shrinking a box never grows a sweep, so one pass over the
-   pairs leaves every pair apart.
+   gap on its free side. Shrinking a box from its hinge side moves the hinge and can
+   grow a thick door's sweep, so the pass over the pairs is repeated until no pair's
+   sweeps meet (at most ``SEPARATION_PASSES``).
 3. A revolute hinge goes on the box's outer face, on the lateral edge nearest the
    predicted origin (the paper projects origins onto the box surface; this picks the
    edge), its axis signed so a positive angle swings the free edge outward; the range is
@@ -75,6 +76,8 @@ CLEARANCE_M = 0.004
 #: Gap in generator units when the object's metric scale is unknown (about 5 mm on a
 #: 1.2 m cabinet).
 CLEARANCE_UNITS = 0.004
+#: Passes over the pairs of movable parts while some pair's sweeps still meet.
+SEPARATION_PASSES = 6
 #: Base boxes thinner than this (m) are dropped (slivers between neighbouring cavities).
 SLIVER_M = 0.002
 #: A movable box thinner than this (m) after separation is no part...
@@ -228,13 +231,14 @@ def _split(a: _Movable, b: _Movable, k: int, gap: float) -> tuple[tuple[float, f
     return new[id(a)], new[id(b)]
 
 
-def _separate(a: _Movable, b: _Movable, gap: float, min_face: float) -> None:
+def _separate(a: _Movable, b: _Movable, gap: float, min_face: float) -> bool:
     """Shrink two boxes whose sweeps meet apart (in place), along an axis that is neither
     one's outward normal: where they overlap least among the axes that leave both faces
-    at least ``min_face`` wide, else where the narrower one stays widest."""
+    at least ``min_face`` wide, else where the narrower one stays widest. Returns whether
+    they had to be shrunk."""
     (alo, ahi), (blo, bhi) = _swept(a), _swept(b)
-    if np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= -gap):
-        return  # their sweeps stay apart by at least the gap along some axis
+    if np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= -gap * (1 - 1e-6)):
+        return False  # their sweeps stay apart by at least the gap along some axis
     overlap = np.minimum(a.hi, b.hi) - np.maximum(a.lo, b.lo)
     allowed = [k for k in range(3) if k not in (a.normal_axis, b.normal_axis)]
     splits = {k: _split(a, b, k, gap) for k in allowed}
@@ -245,6 +249,7 @@ def _separate(a: _Movable, b: _Movable, gap: float, min_face: float) -> None:
     else:
         k = max(allowed, key=lambda k: narrowest[k])
     (a.lo[k], a.hi[k]), (b.lo[k], b.hi[k]) = splits[k]
+    return True
 
 
 def _widen_shallow_front(m: _Movable, min_face: float, outer: np.ndarray) -> None:
@@ -344,8 +349,10 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
                 m.lo[n] = outer_lo[n]
     for m in moving:
         _widen_shallow_front(m, min_face, outer)
-    for a, b in itertools.combinations(moving, 2):
-        _separate(a, b, gap, min_face)
+    for _ in range(SEPARATION_PASSES):  # a thick door trimmed on its hinge side sweeps
+        moved = [_separate(a, b, gap, min_face) for a, b in itertools.combinations(moving, 2)]
+        if not any(moved):  # further: pairs apart before may meet again
+            break
 
     kept: list[_Movable] = []
     dropped: list[Part] = list(fixed)
