@@ -236,10 +236,11 @@ def _move_parts(
     """``relabel_front``'s move: the parts in ``moved`` leave the columns the mask gives
     elsewhere (to the base) and take, in each of their own columns, the unbroken run of
     occupied voxels from the front back, at most ``depths[k]`` deep (a drawer's front
-    panel, and its sides and bottom where they continue it; not a separate piece behind
+    panel, and its sides and bottom where they continue it, not a separate piece behind
     it; in a column on the rim of the object's front, where the base's own wall runs
-    back, only as deep as in its inner columns), of which the piece reaching furthest
-    to the front is kept (the rest goes to the base); the other movable parts' voxels are never taken."""
+    back, only as deep as in its inner columns). Of what a part takes, the piece reaching
+    furthest to the front is kept, the rest goes to the base. The other movable parts'
+    voxels are never taken."""
     union = occ.any(axis=0)
     kept = np.zeros(union.shape, bool)  # voxels of the parts placed well
     for k in movable:
@@ -329,20 +330,17 @@ def relabel_front(
     In the view that agrees best with the mask (``best_view``), a movable slot ``k`` in
     ``slots`` whose rendered pixels overlap the mask's pixels of id ``k + 1`` by less
     than ``misplaced_iou`` (IoU) is misplaced: a drawer in the wrong row, a door spread
-    over its neighbour. Then the frontmost voxel of every column along x is projected
-    into the mask (cropped as the render is, resampled to ``COLUMN_GRID`` pixels: a
-    drawer a few voxels tall keeps its rows): the id there labels the column. A
-    misplaced part loses its voxels in columns the mask gives to something else (they go
-    to the base) and takes, in the columns the mask gives it, the unbroken run of
-    occupied voxels from the front, at most as deep as it is in the sample (its x extent; the median of the other
-    movable parts when it is empty, ``depth`` voxels when all are; at most
-    ``max_depth_share`` of the object's depth). A part that would keep less than
-    ``MIN_FRONT_VOXELS`` across the front (a drawer the mask draws a voxel tall) is not
-    moved. Parts placed well enough are left alone: their voxels are neither moved nor
-    taken (the orthographic views and the
-    coarse grid make a right layout score only about 0.66, and a part a voxel or two
-    tall does not survive a relabelling). Parts stay disjoint and their union does not
-    change.
+    over its neighbour. The frontmost voxel of every column along x is projected into the
+    mask (cropped as the render is, resampled to ``COLUMN_GRID`` pixels: a drawer a few
+    voxels tall keeps its rows), and the id there labels the column. A misplaced part
+    loses its voxels in columns the mask gives to something else (to the base) and takes
+    the voxels of the columns the mask gives it (``_move_parts``), at most as deep as it
+    is in the sample (its x extent; the median of the other movable parts' when it is
+    empty, ``depth`` voxels when all are; at most ``max_depth_share`` of the object's
+    depth). A part that would keep less than ``MIN_FRONT_VOXELS`` across the front (a
+    drawer the mask draws a voxel tall) is not moved. Parts placed well enough are left
+    alone, their voxels neither moved nor taken: the orthographic views and the coarse
+    grid make even a right layout score only about 0.66. Parts stay disjoint.
 
     Returns a new array; ``occ`` itself (a copy) when nothing is misplaced, or the
     relabelling would leave a slot of ``slots`` that the sample has empty, or agrees
