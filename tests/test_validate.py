@@ -507,8 +507,8 @@ def test_base_on_uneven_feet_gets_a_levelling_plate(tmp_path):
 def test_a_deep_narrow_door_hinged_at_the_side_opens_outward(tmp_path):
     """A door 9 cm deep and 12 cm wide, hinged at the object's side (what a generator
     makes of a narrow panel): opening first moves its centroid sideways, toward the
-    base's centre, but its free edge leaves the front. It passes ``opens_outward`` and
-    is not flipped; the same door with its axis inverted still fails."""
+    base's centre, but its free edge leaves the front. It passes ``opens_outward`` (also
+    with a range past a half turn); the same door with its axis inverted still fails."""
     import trimesh
 
     from generator.articulated import ArticulatedObject, Joint, Part
@@ -531,6 +531,12 @@ def test_a_deep_narrow_door_hinged_at_the_side_opens_outward(tmp_path):
     build_asset(d)
     report = validate_asset(d, repair=False, preview=False)
     assert "opens_outward[joint_door_1]" not in _first_failed(report), report.reasons
+    # a range past a half turn (PartNet refrigerators: up to 180 degrees and more),
+    # where opened and swung back by the range meet: judged at a quarter turn
+    _edit_urdf(d, lambda r: _joint(r, "joint_door_1").find("limit").set("upper", "3.14159265"))
+    report = validate_asset(d, repair=False, preview=False)
+    assert "opens_outward[joint_door_1]" not in _first_failed(report), report.reasons
+    _edit_urdf(d, lambda r: _joint(r, "joint_door_1").find("limit").set("upper", "1.2"))
     _edit_urdf(
         d,
         lambda r: (

@@ -239,9 +239,9 @@ def _swings_out(
     all_closed: np.ndarray,
 ) -> float:
     """How much further a hinged part reaches out of the closed object's bounding box
-    (``all_closed``: every piece's vertices at rest) fully opened than it would swung as
-    far the other way (mean over its vertices, m): positive when it opens out of the
-    object. The centroid's distance from the base's centroid, which decides for a
+    (``all_closed``: every piece's vertices at rest) opened by its range, at most a
+    quarter turn, than it would swung as far the other way (mean over its vertices, m):
+    positive when it opens out of the object. The centroid's distance from the base's centroid, which decides for a
     sliding part, misjudges a deep, narrow door hinged at the object's side both ways:
     opened right its centroid first moves sideways, toward the base's centre, while
     its free edge leaves the front; opened the wrong way, into the base, its centroid
@@ -256,7 +256,8 @@ def _swings_out(
         gap = np.maximum(lo - p, 0.0) + np.maximum(p - hi, 0.0)
         return float(np.linalg.norm(gap, axis=1).mean())
 
-    return outside(j.upper) - outside(j.lower - (j.upper - j.lower))
+    span = min(j.upper - j.lower, math.pi / 2)  # at +-180 degrees both ways meet
+    return outside(j.lower + span) - outside(j.lower - span)
 
 
 def _engagement_check(
