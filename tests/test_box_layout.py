@@ -166,6 +166,39 @@ def test_nested_part_keeps_its_box_and_the_outer_one_is_trimmed_to_its_larger_si
     assert bi[1, 2] - bi[0, 2] > 0.09
 
 
+def test_a_thick_door_trimmed_on_its_hinge_side_is_kept_off_its_neighbour():
+    """A 15 cm thick door between a drawer on its hinge side, which it overlaps, and one
+    just clear of its free edge's sweep: splitting it from the first moves its hinge and
+    grows that sweep into the second. The layout passes over the pairs again until no
+    sweeps meet: the free edge's reach (hinge + hypot(thickness, width)) stays about a gap off
+    the second drawer."""
+    door = Part(
+        "door_1",
+        "door",
+        _box((0.05, -0.4, -0.3), (0.2, -0.2, 0.3)),
+        Joint("revolute", [0.2, -0.4, 0.0], [0, 0, -1], 0.0, 1.2),
+    )
+    beside = Part(
+        "drawer_2",
+        "drawer",
+        _box((0.0, -0.1399, -0.2), (0.2, 0.1, 0.2)),
+        Joint("prismatic", [0.2, 0, 0], [1, 0, 0], 0.0, 0.15),
+    )
+    hinge_side = Part(
+        "drawer_3",
+        "drawer",
+        _box((0.0, -0.5, -0.2), (0.2, -0.3, 0.45)),
+        Joint("prismatic", [0.2, -0.4, 0.1], [1, 0, 0], 0.0, 0.15),
+    )
+    out = _layout([_base(), door, beside, hinge_side])
+    d, b = _bounds(out["door_1"]), _bounds(out["drawer_2"])
+    hinge_y = out["door_1"].joint.origin[1]
+    assert hinge_y == pytest.approx(d[0, 1])  # hinged on the trimmed side
+    assert d[0, 1] > -0.4 + 0.01  # it was trimmed
+    reach = hinge_y + math.hypot(d[1, 0] - d[0, 0], d[1, 1] - d[0, 1])
+    assert reach <= b[0, 1] - 0.9 * GAP  # a gap (less what the last pass trims) off it
+
+
 def test_parts_too_thin_or_too_small_to_open_are_merged_into_the_base():
     """scale = 1: a 4 mm flap (< MIN_SIZE_M) and a 3 x 3 cm knob-sized door (face <
     MIN_FACE_M) are no parts; their meshes join the base's."""
