@@ -349,9 +349,10 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
                 m.lo[n] = outer_lo[n]
     for m in moving:
         _widen_shallow_front(m, min_face, outer)
-    for _ in range(SEPARATION_PASSES):  # a thick door trimmed on its hinge side sweeps
-        moved = [_separate(a, b, gap, min_face) for a, b in itertools.combinations(moving, 2)]
-        if not any(moved):  # further: pairs apart before may meet again
+    # a thick door trimmed on its hinge side sweeps further: a pair apart before may meet
+    for _ in range(SEPARATION_PASSES):
+        shrunk = [_separate(a, b, gap, min_face) for a, b in itertools.combinations(moving, 2)]
+        if not any(shrunk):
             break
 
     kept: list[_Movable] = []

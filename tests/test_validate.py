@@ -72,6 +72,11 @@ def _joint(root: ET.Element, name: str) -> ET.Element:
     return el
 
 
+def _invert_axis(root: ET.Element, name: str) -> None:
+    axis = _joint(root, name).find("axis")
+    axis.set("xyz", " ".join(str(-float(v)) for v in axis.get("xyz").split()))
+
+
 def _kinds(report: Report) -> set[tuple[str, str]]:
     return {(r.kind, r.target) for r in report.repairs}
 
@@ -174,20 +179,7 @@ def test_pristine_asset_passes_and_report_is_complete(copy_of):
 
 def test_inverted_door_axis_is_flipped(copy_of):
     d = copy_of("cabinet")
-    _edit_urdf(
-        d,
-        lambda r: (
-            _joint(r, "joint_door_0")
-            .find("axis")
-            .set(
-                "xyz",
-                " ".join(
-                    str(-float(v))
-                    for v in _joint(r, "joint_door_0").find("axis").get("xyz").split()
-                ),
-            )
-        ),
-    )
+    _edit_urdf(d, lambda r: _invert_axis(r, "joint_door_0"))
     report = validate_asset(d, preview=False)
     assert "opens_outward[joint_door_0]" in _first_failed(report)
     assert "sweep_penetration[joint_door_0]" in _first_failed(report)
@@ -537,19 +529,6 @@ def test_a_deep_narrow_door_hinged_at_the_side_opens_outward(tmp_path):
     report = validate_asset(d, repair=False, preview=False)
     assert "opens_outward[joint_door_1]" not in _first_failed(report), report.reasons
     _edit_urdf(d, lambda r: _joint(r, "joint_door_1").find("limit").set("upper", "1.2"))
-    _edit_urdf(
-        d,
-        lambda r: (
-            _joint(r, "joint_door_1")
-            .find("axis")
-            .set(
-                "xyz",
-                " ".join(
-                    str(-float(v))
-                    for v in _joint(r, "joint_door_1").find("axis").get("xyz").split()
-                ),
-            )
-        ),
-    )
+    _edit_urdf(d, lambda r: _invert_axis(r, "joint_door_1"))
     report = validate_asset(d, repair=False, preview=False)
     assert "opens_outward[joint_door_1]" in _first_failed(report)

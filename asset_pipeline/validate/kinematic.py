@@ -241,11 +241,11 @@ def _swings_out(
     """How much further a hinged part reaches out of the closed object's bounding box
     (``all_closed``: every piece's vertices at rest) opened by its range, at most a
     quarter turn, than it would swung as far the other way (mean over its vertices, m):
-    positive when it opens out of the object. The centroid's distance from the base's centroid, which decides for a
-    sliding part, misjudges a deep, narrow door hinged at the object's side both ways:
-    opened right its centroid first moves sideways, toward the base's centre, while
-    its free edge leaves the front; opened the wrong way, into the base, its centroid
-    moves away sideways."""
+    positive when it opens out of the object. The centroid's distance from the base's
+    centroid, which decides for a sliding part, misjudges a deep, narrow door hinged at
+    the object's side both ways: opened right, its centroid first moves sideways toward
+    the base's centre while its free edge leaves the front; opened the wrong way, into
+    the base, its centroid moves away sideways."""
     lo, hi = all_closed.min(axis=0), all_closed.max(axis=0)
     pts = np.concatenate(child)
 

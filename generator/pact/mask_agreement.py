@@ -270,8 +270,8 @@ def _move_parts(
         # wall running back: there the part is only as deep as in its inner columns
         rim = ~footprint_inner[cy, cz]
         inner_runs = run[~rim].sum(axis=1)
-        cap = int(np.median(inner_runs)) if len(inner_runs) else 1
-        run[rim, max(cap, 1) :] = 0
+        rim_depth = max(int(np.median(inner_runs)), 1) if len(inner_runs) else 1
+        run[rim, rim_depth:] = 0
         i, j = np.nonzero(run)  # the unbroken run of voxels from the front, per column
         x, y, z = x[i, j], cy[i], cz[i]
         out[:, x, y, z] = False
