@@ -154,4 +154,4 @@ def test_convert_uses_pact_by_default(tmp_path):
     assert r.exit_code == 0, r.output
     obj = json.loads((out / "microwave_t0000001" / "object.json").read_text())
     assert obj["provenance"]["generator"] == "pact"
-    assert obj["provenance"]["articulation_features"] == "stage2"
+    assert obj["provenance"]["articulation_features"] == "stage2+types1"

@@ -342,6 +342,48 @@ def _joint(type_: str, semantic: str, origin, axis):  # noqa: ANN202
     )
 
 
+def test_joint_type_from_the_stage1_head_where_the_heads_disagree(monkeypatch):
+    """``stage2+types1``: a part keeps stage 2's joint where the stage-1 head reads the
+    same joint type (its own origin and axis are not taken), takes the stage-1 head's
+    joint where it reads another type, and keeps stage 2's where stage 1 has none. It is
+    the default only with a stage-1 head and stage-1 features."""
+    from types import SimpleNamespace
+
+    from generator.pact.generate import PActGenerator
+
+    j2 = [
+        None,
+        _joint("revolute", "door", (0.2, -0.3, 0.0), (0, 0, 1)),
+        _joint("prismatic", "drawer", (0.2, 0.0, 0.1), (1, 0, 0)),
+        _joint("revolute", "door", (0.2, 0.3, 0.0), (0, 0, -1)),
+    ]
+    j1 = [
+        None,
+        _joint("prismatic", "drawer", (0.2, 0.0, -0.2), (1, 0, 0)),
+        _joint("prismatic", "drawer", (0.0, 0.0, 0.0), (0, 1, 0)),
+        None,
+    ]
+    real = PActGenerator.articulation
+
+    def per_head(self, run, agg_steps=None, source=None):  # noqa: ANN001, ANN202
+        return {"stage2": j2, "stage1": j1}.get(source) or real(self, run, agg_steps, source)
+
+    monkeypatch.setattr(PActGenerator, "articulation", per_head)
+    gen = object.__new__(PActGenerator)
+    run = SimpleNamespace(features_1=[np.zeros(1)], features_2=[np.zeros(1)])
+    out = real(gen, run, None, "stage2+types1")
+    assert out[0] is None
+    assert out[1] is j1[1]  # the heads disagree: the stage-1 head's drawer
+    assert out[2] is j2[2]  # both read a drawer: stage 2's axis and origin
+    assert out[3] is j2[3]  # no stage-1 joint
+    gen.stage1_head = object()
+    assert gen.articulation_source(run) == "stage2+types1"
+    assert gen.articulation_source(SimpleNamespace(features_1=[], features_2=[1])) == "stage2"
+    gen.stage1_head = None
+    assert gen.articulation_source(run) == "stage2"
+    assert gen.articulation_source(run, "stage1") == "stage1"
+
+
 def test_category_prior_hinges_doors_as_the_category_does():
     """A user's category hint: a microwave's door hinged at its bottom edge turns to a
     side hinge (at the side nearest the prediction), an oven's side-hinged door to a

@@ -270,3 +270,28 @@ def test_layout_from_raw_meshes_visuals_from_clean_ones():
     out = with_visuals(fit_box_layout(raw), raw, clean)
     low = min(q.transform[2, 3] - q.size[2] / 2 for q in out.part("base").primitives)
     assert low == pytest.approx(-0.52) and out.bounds()[0][2] == pytest.approx(-0.52)
+
+
+def test_a_raw_mesh_that_lost_the_face_is_replaced_by_the_clean_one():
+    """A drawer front two voxels deep whose raw SDF decodes to a sliver of its face (a
+    quarter of it here) would be merged into the base by the box layout: generate lays
+    out the clean mesh instead. A raw mesh about as large as the clean one (a little
+    trimmed, a stray fragment) is kept; a missing raw mesh is replaced."""
+    import trimesh as tm
+
+    from generator.pact.generate import _raw_face_lost
+
+    def box(lo, hi):
+        m = tm.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        return m
+
+    clean = box((0.45, -0.3, 0.1), (0.5, 0.3, 0.3))  # face 0.6 x 0.2
+    sliver = box((0.46, -0.15, 0.15), (0.48, 0.15, 0.25))  # face 0.3 x 0.1: a quarter
+    trimmed = box((0.46, -0.28, 0.11), (0.49, 0.28, 0.29))
+    stray = tm.util.concatenate([trimmed, box((0.0, 0.0, -0.3), (0.01, 0.01, -0.29))])
+    assert _raw_face_lost(sliver, clean)
+    assert not _raw_face_lost(trimmed, clean)
+    assert not _raw_face_lost(stray, clean)
+    assert _raw_face_lost(None, clean) and _raw_face_lost(tm.Trimesh(), clean)
+    assert not _raw_face_lost(sliver, None)
