@@ -295,3 +295,66 @@ def test_a_raw_mesh_that_lost_the_face_is_replaced_by_the_clean_one():
     assert not _raw_face_lost(stray, clean)
     assert _raw_face_lost(None, clean) and _raw_face_lost(tm.Trimesh(), clean)
     assert not _raw_face_lost(sliver, None)
+
+
+def test_visuals_are_cut_where_they_reach_into_a_neighbour():
+    """Two stacked drawers whose collision boxes the layout left 4 mm apart, their clean
+    meshes each reaching 1 cm past their box toward the other: cut at the middle of the
+    gap, their meshes' boxes no longer overlap (the metrics' AOR) and each stays one
+    closed piece with its vertex colours. A side without a neighbour (the bottom drawer's
+    bottom, the drawers' fronts and -y sides) keeps the mesh's extent. A door beside the
+    drawers (boxes 1 cm apart along y): the drawers' meshes reaching toward it are cut at
+    the middle of that gap, its own mesh, short of it, is left as it is."""
+    import trimesh as tm
+
+    from generator.articulated import Joint, Part, Primitive
+    from generator.metrics import iou
+    from generator.pact.generate import clip_from_neighbours
+
+    def box(lo, hi):
+        m = tm.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        m.visual.vertex_colors = np.tile([200, 120, 40, 255], (len(m.vertices), 1))
+        return m
+
+    def part(name, prim_lo, prim_hi, mesh, joint):
+        lo, hi = np.asarray(prim_lo, float), np.asarray(prim_hi, float)
+        prim = Primitive("box", hi - lo, tm.transformations.translation_matrix((lo + hi) / 2))
+        return Part(name, "drawer", mesh, joint, [prim])
+
+    slide = Joint("prismatic", (0.3, 0, 0), (1, 0, 0), 0, 0.3)
+    low = part(
+        "drawer_1",
+        (-0.2, -0.3, 0.0),
+        (0.3, 0.3, 0.2),
+        box((-0.2, -0.31, -0.01), (0.31, 0.31, 0.21)),
+        slide,
+    )
+    high = part(
+        "drawer_2",
+        (-0.2, -0.3, 0.204),
+        (0.3, 0.3, 0.4),
+        box((-0.2, -0.31, 0.194), (0.31, 0.31, 0.41)),
+        slide,
+    )
+    door = part(
+        "door_3",
+        (0.28, 0.31, 0.0),
+        (0.3, 0.6, 0.4),
+        box((0.28, 0.312, 0.0), (0.3, 0.6, 0.4)),
+        Joint("revolute", (0.3, 0.6, 0), (0, 0, 1), 0, 1.5),
+    )
+    boxes = np.array([low.mesh.bounds, high.mesh.bounds])
+    assert iou(boxes[0], boxes[1]) > 0.03  # overlapping before
+    parts = [low, high, door]
+    a = clip_from_neighbours(low.mesh, low, parts)
+    b = clip_from_neighbours(high.mesh, high, parts)
+    assert a.bounds[1][2] == pytest.approx(0.202) and b.bounds[0][2] == pytest.approx(0.202)
+    assert iou(a.bounds, b.bounds) == pytest.approx(0.0, abs=1e-9)
+    assert a.bounds[0][2] == pytest.approx(-0.01) and b.bounds[1][2] == pytest.approx(0.41)
+    assert a.bounds[0][1] == pytest.approx(-0.31) and a.bounds[1][0] == pytest.approx(0.31)
+    assert a.bounds[1][1] == pytest.approx(0.305) and b.bounds[1][1] == pytest.approx(0.305)
+    for m in (a, b):
+        assert m.is_watertight and len(m.split(only_watertight=False)) == 1
+        assert np.all(m.visual.vertex_colors[:, :3] == [200, 120, 40])
+    assert clip_from_neighbours(door.mesh, door, parts) is door.mesh
