@@ -155,3 +155,59 @@ def test_relabel_front_keeps_a_sample_it_cannot_improve():
     one_part = np.where(mask == 3, 1, mask)
     sample = gt.copy()
     assert np.array_equal(relabel_front(sample, one_part, [0, 1, 2]), gt)
+
+
+def _desk(R: int = 32) -> np.ndarray:
+    """Slot 0 a low, wide body (x 0-7, y 0-31, z 8-23: 8 deep, 32 wide, 16 tall), slot 1
+    a drawer front one voxel deep on its face (x 8, y 4-11, z 18-21; 9 deep with it), slot 2 a shelf
+    one voxel thick across it (z 12)."""
+    occ = np.zeros((3, R, R, R), bool)
+    occ[0, :8, :, 8:24] = True
+    occ[1, 8, 4:12, 18:22] = True
+    occ[0, :8, :, 12] = False
+    occ[2, :8, :, 12] = True
+    return occ
+
+
+def test_height_scale_fits_the_silhouettes_aspect_by_hand():
+    """Seen from the front (the only view offered), the body is 32 wide and 16 tall:
+    against a square silhouette its height must double, against one 4 to 1 halve;
+    against one of its own aspect it stays."""
+    from generator.pact.mask_agreement import height_scale
+
+    front = (view_rotation(0.0, 0.0),)
+    occ = _desk()
+    square = np.zeros((64, 64), np.uint8)
+    square[10:50, 10:50] = 1
+    assert height_scale(occ, square, front) == pytest.approx(2.0, rel=0.03)
+    wide = np.zeros((64, 64), np.uint8)
+    wide[20:30, 4:44] = 1
+    assert height_scale(occ, wide, front) == pytest.approx(0.5, rel=0.03)
+    same = np.zeros((64, 64), np.uint8)
+    same[10:30, 4:44] = 1
+    assert height_scale(occ, same, front) == pytest.approx(1.0, rel=0.03)
+
+
+def test_rescale_height_keeps_parts_and_thin_panels():
+    """Doubled in height the desk is 32 tall and, its longest side spanning the grid
+    again, still 32 wide and 9 deep; halved, it is 8 tall and the one-voxel shelf and
+    drawer front survive (each source cell fills the target cells it touches). Parts stay
+    disjoint, none is emptied, and a factor of 1 changes nothing."""
+    from generator.pact.mask_agreement import fit_height, rescale_height
+
+    occ = _desk()
+    for factor, tall in ((2.0, 32), (0.5, 8)):
+        out = rescale_height(occ, factor)
+        ext = np.ptp(np.argwhere(out.any(axis=0)), axis=0) + 1
+        assert ext.tolist() == [9, 32, tall]
+        assert (out.sum(axis=0) <= 1).all()
+        assert all(out[k].any() for k in range(3))
+        shelf_z = np.unique(np.argwhere(out[2])[:, 2])
+        assert len(shelf_z) == (2 if factor == 2.0 else 1)
+        assert len(np.unique(np.argwhere(out[1])[:, 0])) == 1  # still one voxel deep
+    assert np.array_equal(rescale_height(occ, 1.0), occ)
+    front = (view_rotation(0.0, 0.0),)
+    same = np.zeros((64, 64), np.uint8)
+    same[10:30, 4:44] = 1
+    kept, f = fit_height(occ, same, front)
+    assert f == 1.0 and np.array_equal(kept, occ)

@@ -391,3 +391,103 @@ def relabel_front(
     if agreement(out, mask, views, grid) < before:
         return occ
     return out
+
+
+#: Height factors ``fit_height`` may apply (a sample is at most this much too flat or tall)
+HEIGHT_SCALE_RANGE = (1.0 / 3.0, 3.0)
+#: ... and it leaves a sample alone when its factor is within this of 1 (|log| below)
+HEIGHT_SCALE_TOLERANCE = 0.1
+
+
+def _silhouette_aspect(points: np.ndarray, view: np.ndarray) -> float:
+    """Width over height of the orthographic projection of ``points`` (N, 3) in ``view``."""
+    q = points @ view.T
+    return float(np.ptp(q[:, 0]) / max(np.ptp(q[:, 1]), 1e-9))
+
+
+def height_scale(
+    occ: np.ndarray,
+    mask: np.ndarray,
+    views: tuple[np.ndarray, ...] = VIEWS,
+    grid: int = GRID,
+) -> float:
+    """The factor on a sample's height (z) that gives its silhouette, in the view that
+    agrees best with the part mask (``best_view``), the aspect (width over height) of
+    the mask's silhouette; clipped to ``HEIGHT_SCALE_RANGE``. The agreement score crops
+    both silhouettes to their own boxes, so it is blind to the object's proportions:
+    stage 1 on a photo of a tall nightstand may draw a wide, low desk, on a microwave a
+    box twice too tall, and keep that sample. 1.0 when the occupancy is empty."""
+    union = np.asarray(occ, bool).any(axis=0)
+    if not union.any():
+        return 1.0
+    _, v = best_view(occ, mask, views, grid)
+    view = views[v]
+    rows, cols = np.nonzero(np.asarray(mask))
+    target = (np.ptp(cols) + 1) / (np.ptp(rows) + 1)
+    # the voxels' corners: the projected box of the occupied cells
+    cells = np.argwhere(union).astype(np.float64)
+    corners = (cells[:, None, :] + _SPLAT[None] / 0.6 + 0.5).reshape(-1, 3)
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    lo, hi = np.log(HEIGHT_SCALE_RANGE[0]), np.log(HEIGHT_SCALE_RANGE[1])
+    for _ in range(40):  # the aspect falls as the height grows
+        mid = 0.5 * (lo + hi)
+        p = (corners - centre) * np.array([1.0, 1.0, np.exp(mid)])
+        if _silhouette_aspect(p, view) > target:
+            lo = mid
+        else:
+            hi = mid
+    return float(np.exp(0.5 * (lo + hi)))
+
+
+def rescale_height(occ: np.ndarray, factor: float) -> np.ndarray:
+    """Part occupancies (T, R, R, R) with the object's height (z) multiplied by
+    ``factor``, then scaled as a whole so that its longest side spans the grid again
+    (the stage-1 normalization), centred on the grid. Each source voxel fills every
+    target voxel its scaled cell touches, so a one-voxel panel survives a squash; a voxel
+    two parts reach goes to the movable part, the lower slot first (``stage1.tidy_parts``'
+    rule)."""
+    occ = np.asarray(occ, bool)
+    T, R = occ.shape[0], occ.shape[1]
+    union = occ.any(axis=0)
+    if not union.any() or factor == 1.0:
+        return occ.copy()
+    idx = np.argwhere(union)
+    lo, hi = idx.min(axis=0).astype(np.float64), idx.max(axis=0) + 1.0
+    stretch = np.array([1.0, 1.0, factor])
+    scale = stretch * (R / ((hi - lo) * stretch).max())  # per axis, source -> target cells
+    # centred on the grid by whole cells: an axis scaled by 1 maps cells onto cells
+    offset = np.floor((R - (hi - lo) * scale) / 2.0 + 1e-6)
+    out = np.zeros_like(occ)
+    for k in [0, *range(T - 1, 0, -1)]:  # base first; lower movable slots win last
+        cells = np.argwhere(occ[k]).astype(np.float64)
+        if len(cells) == 0:
+            continue
+        a = (cells - lo) * scale + offset
+        b = (cells + 1.0 - lo) * scale + offset
+        first = np.clip(np.floor(a + 1e-6), 0, R - 1).astype(np.int64)
+        last = np.clip(np.ceil(b - 1e-6) - 1, 0, R - 1).astype(np.int64)
+        last = np.maximum(last, first)
+        span = int((last - first).max()) + 1
+        offs = np.stack(np.meshgrid(*[np.arange(span)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        tgt = first[:, None, :] + offs[None]
+        keep = (tgt <= last[:, None, :]).all(axis=2)
+        tgt = tgt[keep]
+        if k > 0:
+            out[:, tgt[:, 0], tgt[:, 1], tgt[:, 2]] = False
+        out[k, tgt[:, 0], tgt[:, 1], tgt[:, 2]] = True
+    return out
+
+
+def fit_height(
+    occ: np.ndarray,
+    mask: np.ndarray,
+    views: tuple[np.ndarray, ...] = VIEWS,
+    grid: int = GRID,
+) -> tuple[np.ndarray, float]:
+    """(occupancies, factor): ``occ`` with its height fitted to the mask's silhouette
+    (``height_scale``, ``rescale_height``); ``occ`` itself (a copy) and 1.0 when the
+    factor is within ``HEIGHT_SCALE_TOLERANCE`` (in log) of 1."""
+    factor = height_scale(occ, mask, views, grid)
+    if abs(np.log(factor)) < HEIGHT_SCALE_TOLERANCE:
+        return np.array(occ, bool), 1.0
+    return rescale_height(occ, factor), factor

@@ -50,7 +50,7 @@ from generator.part_cleaning import clean_parts
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .mask_agreement import agreement, carve_missing, relabel_front
+from .mask_agreement import agreement, carve_missing, fit_height, relabel_front
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
 
@@ -144,10 +144,12 @@ class Stage1Generator:
         device: torch.device | str = "cpu",
         box_layout: bool = True,
         candidates: int = 8,
+        fit_height: bool = True,
     ) -> None:
         if candidates < 1:
             raise ValueError(f"candidates must be >= 1, got {candidates}")
         self.box_layout = box_layout
+        self.fit_height = fit_height
         self.candidates = candidates
         self.models = {k: m.to(device).eval() for k, m in models.items()}
         self.cfg = cfg
@@ -281,6 +283,9 @@ class Stage1Generator:
             occ[b] = relabel_front(occ[b], masks[b], slots)  # the front after the mask
             ids = np.array([0, 1, *[k + 1 for k in slots]])
             occ[b], exists[b] = tidy_parts(occ[b], occ[b].reshape(T, -1).any(axis=1), ids)
+            if self.fit_height:  # the proportions of the mask's silhouette
+                occ[b], _ = fit_height(occ[b], masks[b])
+                exists[b] = occ[b].reshape(T, -1).any(axis=1)
         return occ, exists
 
     @staticmethod
