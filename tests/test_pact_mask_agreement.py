@@ -192,7 +192,9 @@ def test_rescale_height_keeps_parts_and_thin_panels():
     """Doubled in height the desk is 32 tall and, its longest side spanning the grid
     again, still 32 wide and 9 deep; halved, it is 8 tall and the one-voxel shelf and
     drawer front survive (each source cell fills the target cells it touches). Parts stay
-    disjoint, none is emptied, and a factor of 1 changes nothing."""
+    disjoint, none is emptied, and a factor of 1 changes nothing. ``fit_height`` leaves a
+    sample a third too low alone (within the tolerance) and doubles one half as tall as
+    the silhouette says."""
     from generator.pact.mask_agreement import fit_height, rescale_height
 
     occ = _desk()
@@ -211,3 +213,12 @@ def test_rescale_height_keeps_parts_and_thin_panels():
     same[10:30, 4:44] = 1
     kept, f = fit_height(occ, same, front)
     assert f == 1.0 and np.array_equal(kept, occ)
+    a_third_taller = np.zeros((64, 64), np.uint8)  # 40 x 26.7: within the tolerance
+    a_third_taller[10:37, 4:44] = 1
+    kept, f = fit_height(occ, a_third_taller, front)
+    assert f == 1.0 and np.array_equal(kept, occ)
+    square = np.zeros((64, 64), np.uint8)
+    square[10:50, 10:50] = 1
+    fitted, f = fit_height(occ, square, front)
+    assert f == pytest.approx(2.0, rel=0.03)
+    assert (np.ptp(np.argwhere(fitted.any(axis=0)), axis=0) + 1).tolist() == [9, 32, 32]

@@ -15,7 +15,9 @@ unknown), so the score compares the layout of the parts, not the object's size.
 The stage-1 generator (``stage1_generator.Stage1Generator``) draws several samples per
 image and keeps the one that realizes the mask's parts and agrees with it best; a part
 the mask shows and the kept sample leaves empty is then carved out of the base where the
-mask puts it (:func:`carve_missing`).
+mask puts it (:func:`carve_missing`), misplaced parts are moved to where the mask puts
+them (:func:`relabel_front`), and, since the score is blind to proportions, the sample's
+height is fitted to the aspect of the mask's silhouette (:func:`fit_height`).
 
 Ground-truth part voxels score 0.66 on average against the masks of the 42 test-split
 renders (0.32-0.83; the renders are perspective, the score's views orthographic); against
@@ -396,7 +398,7 @@ def relabel_front(
 #: Height factors ``fit_height`` may apply (a sample is at most this much too flat or tall)
 HEIGHT_SCALE_RANGE = (1.0 / 3.0, 3.0)
 #: ... and it leaves a sample alone when its factor is within this of 1 (|log| below)
-HEIGHT_SCALE_TOLERANCE = 0.1
+HEIGHT_SCALE_TOLERANCE = 0.4
 
 
 def _silhouette_aspect(points: np.ndarray, view: np.ndarray) -> float:

@@ -27,9 +27,11 @@ no sample does), the one whose parts agree best with the mask when rendered
 that leaves one of its parts empty (the small model does for about one object in six)
 or puts a drawer in the wrong row is wrong whatever its other parts look like. A part
 the mask shows that the kept sample still leaves empty is carved out of the base where
-the mask puts it (``mask_agreement.carve_missing``), and the movable parts on the front
-are relabelled after the mask (``mask_agreement.relabel_front``). Without a mask there is
-nothing to check against, and one sample is drawn.
+the mask puts it (``mask_agreement.carve_missing``), the movable parts on the front
+are relabelled after the mask (``mask_agreement.relabel_front``), and the sample's height
+is fitted to the proportions of the mask's silhouette (``mask_agreement.fit_height``;
+``fit_height=False`` turns it off). Without a mask there is nothing to check against,
+and one sample is drawn.
 """
 
 from __future__ import annotations
