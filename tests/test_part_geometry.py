@@ -309,7 +309,7 @@ def test_visuals_are_cut_where_they_reach_into_a_neighbour():
 
     from generator.articulated import Joint, Part, Primitive
     from generator.metrics import iou
-    from generator.pact.generate import clip_from_neighbours
+    from generator.pact.generate import _primitive_box, clip_from_neighbours
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))
@@ -347,8 +347,12 @@ def test_visuals_are_cut_where_they_reach_into_a_neighbour():
     boxes = np.array([low.mesh.bounds, high.mesh.bounds])
     assert iou(boxes[0], boxes[1]) > 0.03  # overlapping before
     parts = [low, high, door]
-    a = clip_from_neighbours(low.mesh, low, parts)
-    b = clip_from_neighbours(high.mesh, high, parts)
+
+    def cut(part):  # noqa: ANN001, ANN202
+        others = [_primitive_box(q) for q in parts if q is not part]
+        return clip_from_neighbours(part.mesh, _primitive_box(part), others)
+
+    a, b = cut(low), cut(high)
     assert a.bounds[1][2] == pytest.approx(0.202) and b.bounds[0][2] == pytest.approx(0.202)
     assert iou(a.bounds, b.bounds) == pytest.approx(0.0, abs=1e-9)
     assert a.bounds[0][2] == pytest.approx(-0.01) and b.bounds[1][2] == pytest.approx(0.41)
@@ -357,4 +361,4 @@ def test_visuals_are_cut_where_they_reach_into_a_neighbour():
     for m in (a, b):
         assert m.is_watertight and len(m.split(only_watertight=False)) == 1
         assert np.all(m.visual.vertex_colors[:, :3] == [200, 120, 40])
-    assert clip_from_neighbours(door.mesh, door, parts) is door.mesh
+    assert cut(door) is door.mesh

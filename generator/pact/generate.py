@@ -310,8 +310,9 @@ class PActGenerator:
         head is there) stage 2's joint unless the stage-1 head reads the part as another
         joint type, then the stage-1 head's joint: on real photos stage 2 often takes a
         drawer the mask relabelled (``mask_agreement.relabel_front``), a panel a voxel
-        or two deep, for a door (21 of the 102 parts of the real dev split's product
-        photos of the wrong type, against 13; 12 against 9 of the test split's 96)."""
+        or two deep, for a door (21 of the 102 parts of 70 of the real dev split's
+        product photos of the wrong type, against 13; 12 against 9 of the test split's
+        96)."""
         source = self.articulation_source(run, source)
         if source == "stage2+types1":
             j2 = self.articulation(run, agg_steps, "stage2")
@@ -452,7 +453,7 @@ def with_visuals(
     mesh), the base's the clean base plus the clean meshes of the parts the layout
     merged into it. A part ``clean`` lacks keeps its mesh."""
     names = {p.name for p in laid.parts}
-    movable = laid.parts[1:]
+    boxes = {p.name: _primitive_box(p) for p in laid.parts[1:] if p.primitives}
     parts = []
     for p in laid.parts:
         c, r = _part(clean, p.name), _part(raw, p.name)
@@ -462,7 +463,10 @@ def with_visuals(
             extra = [q.mesh for q in (_part(clean, m.name) for m in merged) if q is not None]
             mesh = trimesh.util.concatenate([c.mesh, *extra]) if extra else c.mesh
         elif c is not None and r is not None:
-            mesh = clip_from_neighbours(c.mesh, p, movable)
+            mesh = c.mesh
+            if p.name in boxes:
+                others = [b for name, b in boxes.items() if name != p.name]
+                mesh = clip_from_neighbours(c.mesh, boxes[p.name], others)
             n = len(r.mesh.faces)
             if len(p.mesh.faces) > n:  # the layout's bar handle
                 bar = p.mesh.submesh([np.arange(n, len(p.mesh.faces))], append=True)
@@ -480,24 +484,19 @@ def _primitive_box(part: Part) -> np.ndarray:
 
 
 def clip_from_neighbours(
-    mesh: trimesh.Trimesh, part: Part, neighbours: list[Part]
+    mesh: trimesh.Trimesh, box: np.ndarray, neighbours: list[np.ndarray]
 ) -> trimesh.Trimesh:
-    """``mesh`` (``part``'s visual) cut where it reaches toward a neighbouring movable
-    part across the gap the box layout left between their collision boxes: at the
+    """``mesh`` (a movable part's visual, whose collision box (2, 3) is ``box``) cut where
+    it reaches toward a neighbouring movable part (collision boxes ``neighbours``) across
+    the gap the box layout left between their collision boxes: at the
     middle of that gap (along the axis the two boxes are furthest apart). A clean part
     mesh reaches a voxel or so past the box the layout fitted to its bulk (two stacked
     drawers' meshes overlapped by up to a fifth of their boxes at rest on the real dev
     split); cut, neighbours' meshes stay apart, as their collision boxes do, and a side
     with no neighbour keeps its full extent. A closed mesh stays closed (the cuts are
     capped); a cut that would leave nothing keeps the mesh."""
-    if not part.primitives:
-        return mesh
-    box = _primitive_box(part)
     out = mesh
-    for q in neighbours:
-        if q is part or not q.primitives:
-            continue
-        other = _primitive_box(q)
+    for other in neighbours:
         gaps = np.maximum(other[0] - box[1], box[0] - other[1])  # (3,) > 0: apart along it
         i = int(np.argmax(gaps))
         if gaps[i] < 0:

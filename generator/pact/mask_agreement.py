@@ -426,15 +426,13 @@ def height_scale(
     view = views[v]
     rows, cols = np.nonzero(np.asarray(mask))
     target = (np.ptp(cols) + 1) / (np.ptp(rows) + 1)
-    # the voxels' corners: the projected box of the occupied cells
-    cells = np.argwhere(union).astype(np.float64)
-    corners = (cells[:, None, :] + _SPLAT[None] / 0.6 + 0.5).reshape(-1, 3)
-    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    # the occupied cells' corners: their projection spans the sample's silhouette
+    cube = np.stack(np.meshgrid(*[(0.0, 1.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    corners = (np.argwhere(union)[:, None, :] + cube[None]).reshape(-1, 3)
     lo, hi = np.log(HEIGHT_SCALE_RANGE[0]), np.log(HEIGHT_SCALE_RANGE[1])
     for _ in range(40):  # the aspect falls as the height grows
         mid = 0.5 * (lo + hi)
-        p = (corners - centre) * np.array([1.0, 1.0, np.exp(mid)])
-        if _silhouette_aspect(p, view) > target:
+        if _silhouette_aspect(corners * np.array([1.0, 1.0, np.exp(mid)]), view) > target:
             lo = mid
         else:
             hi = mid
