@@ -500,3 +500,42 @@ def test_conditioning_init_options():
     assert 0.5 < float(live.part_embed.std()) < 1.5
     assert float(added[:, TINY_FLOW.cond_prefix_tokens :].pow(2).mean().sqrt()) > 0.1
     assert torch.equal(added[:, : TINY_FLOW.cond_prefix_tokens], torch.zeros_like(added[:, :1]))
+
+
+def _box_shell(lo, hi, R=16):
+    import numpy as np
+
+    solid = np.zeros((R, R, R), bool)
+    solid[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]] = True
+    inner = np.zeros_like(solid)
+    inner[lo[0] + 1 : hi[0] - 1, lo[1] + 1 : hi[1] - 1, lo[2] + 1 : hi[2] - 1] = True
+    return solid & ~inner
+
+
+def test_close_surface_fills_wall_holes_and_keeps_a_kneehole_open():
+    import numpy as np
+
+    from generator.pact.stage1 import close_surface
+
+    # a cabinet: a box shell (x 2..12, y 2..14, z 0..12) with a drawer front in it
+    occ = np.zeros((3, 16, 16, 16), bool)
+    occ[0] = _box_shell((2, 2, 0), (12, 14, 12))
+    occ[1, 11, 4:10, 6:10] = True  # the drawer's front panel, in the front wall (x = 11)
+    occ[0] &= ~occ[1]
+    occ[0, 5:8, 2, 4:7] = False  # a 3 x 3 hole in the side wall (y = 2)
+    occ[1, 11, 6:8, 7:9] = False  # a 2 x 2 hole in the drawer's front
+    out = close_surface(occ)
+    assert out[0, 5:8, 2, 4:7].all()  # the wall's hole is the base's again
+    assert out[1, 11, 6:8, 7:9].all() and not out[0, 11, 6:8, 7:9].any()  # the drawer's
+    assert not (out[0] & out[1]).any()
+    assert out.sum() == occ.sum() + 9 + 4  # nothing else added: the inside stays hollow
+    # a desk: a top (z 10..11) on two pedestals (y 1..4 and y 11..14), the kneehole
+    # between them open at the front, the back and the floor
+    desk = np.zeros((2, 16, 16, 16), bool)
+    desk[0, 2:12, 1:15, 10:12] = True
+    desk[0, 2:12, 1:5, 0:10] = True
+    desk[0, 2:12, 11:15, 0:10] = True
+    closed = close_surface(desk)
+    assert not closed[:, :, 5:11, 0:10].any()  # nothing closes the kneehole
+    assert (closed == desk).all()
+    assert (close_surface(np.zeros((2, 8, 8, 8), bool)) == 0).all()

@@ -32,7 +32,7 @@ import numpy as np
 GRID = 40  # G: the side of the compared id images, in pixels
 PIXEL_MIN = 0.7  # voxels: the smallest pixel a sample is rendered with
 COLUMN_GRID = 160  # pixels: the side of the mask image the front's columns are read from
-MISPLACED_IOU = 0.7  # a part overlapping its mask pixels less than this is moved
+MISPLACED_IOU = 0.85  # a part overlapping its mask pixels less than this is moved
 #: (short, long) voxels across the front that a moved part keeps, else it is not moved:
 #: on the 32-voxel grid of a unit object, the box layout's 5 cm smallest face (10 cm for
 #: the other side of a shallow one) at an object's typical 1-1.5 m

@@ -258,6 +258,10 @@ def fine_sdf_grid(
 #: inside cell, and the largest value left next to one: half a fine cell each way, so a
 #: forced sheet one fine cell thick decodes to a plate about one fine cell thick.
 FORCED = 0.125
+#: Side (fine cells) of the closing that fills the lattice's net into sheets: anchors of
+#: neighbouring voxels lie up to 2 SUB - 1 cells apart, so a smaller closing (5 did)
+#: leaves holes in a wall wherever stage 2 decoded no surface
+LATTICE_CLOSING = 2 * SUB + 1
 #: The 13 "positive" of the 26 neighbour offsets (each neighbouring pair once).
 _HALF_OFFSETS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if d > (0, 0, 0)])
 _FACES = ndimage.generate_binary_structure(3, 1)  # 6-connectivity
@@ -329,7 +333,7 @@ def constrain_sdf(
     empty +1), occ / interior (X/s, Y/s, Z/s) bool, the crop's occupied and interior
     voxels. Returns (grid, forced) where forced marks the cells forced inside:
 
-    1. the lattice (``occupancy_lattice``) of the occupancy, closed (a cube of 5 fine
+    1. the lattice (``occupancy_lattice``) of the occupancy, closed (a cube of ``LATTICE_CLOSING`` fine
        cells) within the occupied voxels: a sheet through the anchors of a thin panel,
        solid in thick parts. Where stage 2 already has its surface, the anchors lie
        inside it and nothing changes; where it decoded nothing (a thin wall's voxel
@@ -350,8 +354,8 @@ def constrain_sdf(
     fine_occ = np.repeat(np.repeat(np.repeat(occ, s, 0), s, 1), s, 2)
     fine_int = np.repeat(np.repeat(np.repeat(interior, s, 0), s, 1), s, 2)
     lattice = occupancy_lattice(grid, occ, s)
-    grown = ndimage.maximum_filter(lattice, size=5, mode="constant", cval=False)
-    closed = ndimage.minimum_filter(grown, size=5, mode="constant", cval=True)
+    grown = ndimage.maximum_filter(lattice, size=LATTICE_CLOSING, mode="constant", cval=False)
+    closed = ndimage.minimum_filter(grown, size=LATTICE_CLOSING, mode="constant", cval=True)
     forced = lattice | (closed & fine_occ)
     g = grid.astype(np.float32, copy=True)
     g[forced] = np.minimum(g[forced], -FORCED)

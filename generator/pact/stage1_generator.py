@@ -31,7 +31,8 @@ the mask puts it (``mask_agreement.carve_missing``), the movable parts on the fr
 are relabelled after the mask (``mask_agreement.relabel_front``), and the sample's height
 is fitted to the proportions of the mask's silhouette (``mask_agreement.fit_height``;
 ``fit_height=False`` turns it off). Without a mask there is nothing to check against,
-and one sample is drawn.
+and one sample is drawn. With or without a mask, holes in the object's outer shell are
+then filled (``stage1.close_surface``; ``close_surface=False`` turns it off).
 """
 
 from __future__ import annotations
@@ -54,7 +55,14 @@ from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
 from .mask_agreement import agreement, carve_missing, fit_height, relabel_front
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
-from .stage1 import LatentStats, Stage1Config, generate_parts, load_stage1, tidy_parts
+from .stage1 import (
+    LatentStats,
+    Stage1Config,
+    close_surface,
+    generate_parts,
+    load_stage1,
+    tidy_parts,
+)
 
 log = logging.getLogger(__name__)
 
@@ -147,11 +155,13 @@ class Stage1Generator:
         box_layout: bool = True,
         candidates: int = 8,
         fit_height: bool = True,
+        close_surface: bool = True,
     ) -> None:
         if candidates < 1:
             raise ValueError(f"candidates must be >= 1, got {candidates}")
         self.box_layout = box_layout
         self.fit_height = fit_height
+        self.close_surface = close_surface
         self.candidates = candidates
         self.models = {k: m.to(device).eval() for k, m in models.items()}
         self.cfg = cfg
@@ -287,6 +297,10 @@ class Stage1Generator:
             occ[b], exists[b] = tidy_parts(occ[b], occ[b].reshape(T, -1).any(axis=1), ids)
             if self.fit_height:  # the proportions of the mask's silhouette
                 occ[b], _ = fit_height(occ[b], masks[b])
+                exists[b] = occ[b].reshape(T, -1).any(axis=1)
+        if self.close_surface:  # holes in the outer shell, with or without a mask
+            for b in range(len(occ)):
+                occ[b] = close_surface(occ[b])
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
         return occ, exists
 
