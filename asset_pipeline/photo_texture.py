@@ -78,11 +78,15 @@ class TextureOptions:
     block: int = 8
     #: Erosion (px) of the photo's part regions before use (drops blended edge pixels).
     erode: int = 1
-    #: Faces are subdivided until their edges are at most this fraction of the object's
-    #: bounding-box diagonal (at most ``max_subdivisions`` times; a generated mesh's
-    #: faces are smaller already): a face's texture coordinates come from its vertices.
+    #: Faces are subdivided until those with an edge longer than this fraction of the
+    #: object's bounding-box diagonal hold at most ``long_share`` of the part's area (at
+    #: most ``max_subdivisions`` times and ``max_faces`` faces; a generated mesh's faces
+    #: are smaller already, but for the few long ones a cut's cap leaves): a face's
+    #: texture coordinates come from its vertices.
     max_edge: float = 0.06
     max_subdivisions: int = 4
+    long_share: float = 0.05
+    max_faces: int = 500_000
 
 
 def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
@@ -103,17 +107,27 @@ def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
 
 
 def _fine_mesh(
-    mesh: trimesh.Trimesh, max_edge: float, max_subdivisions: int
+    mesh: trimesh.Trimesh,
+    max_edge: float,
+    max_subdivisions: int,
+    long_share: float = 0.0,
+    max_faces: int | None = None,
 ) -> tuple[trimesh.Trimesh, np.ndarray]:
-    """``mesh`` subdivided (every face into four, keeping the mesh closed) until its
-    longest edge is at most ``max_edge``, and the original face of every new face."""
+    """``mesh`` subdivided (every face into four, keeping the mesh closed) until the faces
+    with an edge longer than ``max_edge`` hold at most ``long_share`` of its area (or
+    another round would pass ``max_faces`` faces), and the original face of every new
+    face. A subdivision splits every face: with no share allowed, the long edges of one
+    cut's small cap made an 8000-face generated drawer 2 million faces."""
     vertices = np.asarray(mesh.vertices, dtype=float)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     origin = np.arange(len(faces))
     for _ in range(max_subdivisions):
+        if len(faces) == 0 or (max_faces is not None and 4 * len(faces) > max_faces):
+            break
         tri = vertices[faces]
-        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(initial=0.0)
-        if longest <= max_edge:
+        long = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1) > max_edge
+        area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        if not long.any() or area[long].sum() <= long_share * area.sum():
             break
         vertices, new_faces, index = trimesh.remesh.subdivide(vertices, faces, return_index=True)
         parent = np.empty(len(new_faces), np.int64)
@@ -331,7 +345,9 @@ def bake_photo_texture(
     generator_colours = {}
     fine_parts = []
     for p in obj.parts:
-        mesh, origin_face = _fine_mesh(p.mesh, max_edge, options.max_subdivisions)
+        mesh, origin_face = _fine_mesh(
+            p.mesh, max_edge, options.max_subdivisions, options.long_share, options.max_faces
+        )
         colours = face_colours(p.mesh)
         generator_colours[p.name] = None if colours is None else colours[origin_face]
         fine_parts.append(
