@@ -333,9 +333,9 @@ def constrain_sdf(
     empty +1), occ / interior (X/s, Y/s, Z/s) bool, the crop's occupied and interior
     voxels. Returns (grid, forced) where forced marks the cells forced inside:
 
-    1. the lattice (``occupancy_lattice``) of the occupancy, closed (a cube of ``LATTICE_CLOSING`` fine
-       cells) within the occupied voxels: a sheet through the anchors of a thin panel,
-       solid in thick parts. Where stage 2 already has its surface, the anchors lie
+    1. the lattice (``occupancy_lattice``) of the occupancy, closed (a cube of
+       ``LATTICE_CLOSING`` fine cells) within the occupied voxels: a sheet through the
+       anchors of a thin panel, solid in thick parts. Where stage 2 already has its surface, the anchors lie
        inside it and nothing changes; where it decoded nothing (a thin wall's voxel
        with no negative value), the sheet stands in for it;
     2. forced cells get at most -FORCED, their positive neighbours at most +FORCED

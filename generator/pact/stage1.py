@@ -204,7 +204,7 @@ def close_surface(occ: np.ndarray, axes: int = CLOSE_AXES) -> np.ndarray:
     """Part occupancies (T, R, R, R) with the holes in the object's outer shell filled.
 
     The small model draws a cabinet of many drawers as a shell full of holes (one test
-    cabinet's base: 2807 surface voxels, a surface of genus 31), and stage 2 decodes
+    cabinet's base: 2807 surface voxels, its main piece a surface of genus 32), and stage 2 decodes
     them as holes: the asset is debris however good its parts' layout. The object's
     *hull* is every cell that lies between occupied cells along at least ``axes`` of the
     three axes (``_between``): a hole in a side wall lies between the front and back
