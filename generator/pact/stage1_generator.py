@@ -54,6 +54,7 @@ from generator.part_cleaning import clean_parts
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
 from .mask_agreement import agreement, carve_missing, fit_height, relabel_front
+from .mask_layout import layout_from_mask
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import (
     LatentStats,
@@ -156,12 +157,14 @@ class Stage1Generator:
         candidates: int = 8,
         fit_height: bool = True,
         close_surface: bool = True,
+        mask_layout: bool = True,
     ) -> None:
         if candidates < 1:
             raise ValueError(f"candidates must be >= 1, got {candidates}")
         self.box_layout = box_layout
         self.fit_height = fit_height
         self.close_surface = close_surface
+        self.mask_layout = mask_layout
         self.candidates = candidates
         self.models = {k: m.to(device).eval() for k, m in models.items()}
         self.cfg = cfg
@@ -289,7 +292,14 @@ class Stage1Generator:
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
+        boxed = np.zeros(len(occ), bool)  # laid out on a box (mask_layout): closed already
         for b, slots in enumerate(shown):
+            laid = layout_from_mask(occ[b], masks[b], slots) if self.mask_layout else None
+            if laid is not None:  # a box and camera fitted to the mask: parts where it puts them
+                occ[b] = laid[0]
+                exists[b] = occ[b].reshape(T, -1).any(axis=1)
+                boxed[b] = True
+                continue
             if not exists[b, slots].all():  # parts the mask shows, left empty: carved
                 occ[b] = carve_missing(occ[b], masks[b], slots)
             occ[b] = relabel_front(occ[b], masks[b], slots)  # the front after the mask
@@ -299,7 +309,7 @@ class Stage1Generator:
                 occ[b], _ = fit_height(occ[b], masks[b])
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
         if self.close_surface:  # holes in the outer shell, with or without a mask
-            for b in range(len(occ)):
+            for b in np.flatnonzero(~boxed):
                 occ[b] = close_surface(occ[b])
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
         return occ, exists

@@ -1,0 +1,386 @@
+"""The object's box and the photo's camera fitted to the part mask, and the movable parts
+laid out on that box's front where the mask puts them.
+
+On real photos the small stage-1 model gets the parts' layout wrong more often than
+anything else: a chest's drawers in the wrong rows or spread over two rows, a
+nightstand's door drawn on its side, walls left full of holes. Yet the part mask and the
+silhouette look the same in a photo and in a render, and for the furniture and
+appliances this project makes they pin the layout down: the object is close to a box, its
+movable parts sit on its front, and the camera is a three-quarter view.
+
+:func:`fit_box_camera` fits a box (its depth and height over its width) and a pinhole
+camera (azimuth, elevation; an assumed ``FOVY`` of 45 degrees: product photos use
+30-60) to the mask: the box's rendered silhouette against the mask's (both cropped to
+their own bounding square: the photo's scale and framing are unknown), plus the share of
+the movable parts' pixels that fall on the box's front face (so the front is the face
+the parts are on). A coarse grid of views and proportions, then a coordinate search from
+the best few. On the 76 real product renders of the dev split (DEVELOPERS.md) with the
+box's depth left free: azimuth within 4 degrees of the true camera's (median), elevation
+within 2, height over width within 8 %, depth over width within 18 % (a near-frontal
+view says little about depth, so :func:`layout_from_mask` takes the depth from the
+stage-1 sample and fits the rest).
+
+:func:`layout_from_mask` then rebuilds the sample's part grids: the base is the box,
+carved where the camera sees background through it (a desk's kneehole, the space
+between a table's legs), each movable part takes the cells of the front face whose
+centres project into its mask pixels, as deep as the sample drew it, and a panel (a
+part at most ``PANEL_SHARE`` of the box's depth deep: a door) leaves a cavity behind it
+inside the base's walls. Stage 2 then decodes these grids like any others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mask_agreement import CARVE_DEPTH, view_rotation
+
+FOVY = np.radians(45.0)  # the assumed camera's vertical field of view
+FIT_RASTERS = (24, 40)  # silhouette raster side: the coarse grid, the refinement
+CONTAINMENT_WEIGHT = 0.5  # weight of the parts-on-the-front share against silhouette IoU
+AZIMUTHS_DEG = np.arange(-70.0, 71.0, 10.0)
+ELEVATIONS_DEG = np.arange(0.0, 51.0, 10.0)
+DEPTH_RANGE = (0.25, 2.5)  # box depth over width searched when the depth is free
+HEIGHT_RANGE = (0.2, 4.0)  # box height over width
+REFINE_STARTS = 6  # coarse candidates refined
+MIN_FIT_IOU = 0.5  # below this silhouette IoU the object is no box: the layout is not used
+#: below this silhouette IoU the object is a box only roughly (legs, an overhanging top): the
+#: base also keeps to the sample's own cells (grown by ``SAMPLE_MARGIN``), since one view
+#: carves only a wedge behind each leg
+BOX_IOU = 0.85
+SAMPLE_MARGIN = 1
+SILHOUETTE_MARGIN = 2  # pixels the silhouette grows by before it carves the base
+PANEL_SHARE = 0.35  # a part at most this share of the box's depth deep is a panel (door)
+MAX_DEPTH_SHARE = 0.9  # no part is deeper than this share of the box's depth
+
+# the box's 8 corners (signs along x, y, z) and its four faces a camera in front sees
+_CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+
+
+def _corner(sx: int, sy: int, sz: int) -> int:
+    return (sx > 0) * 4 + (sy > 0) * 2 + (sz > 0)
+
+
+_FACES = {
+    "front": [_corner(1, -1, -1), _corner(1, 1, -1), _corner(1, 1, 1), _corner(1, -1, 1)],
+    "left": [_corner(-1, 1, -1), _corner(1, 1, -1), _corner(1, 1, 1), _corner(-1, 1, 1)],
+    "right": [_corner(-1, -1, -1), _corner(1, -1, -1), _corner(1, -1, 1), _corner(-1, -1, 1)],
+    "top": [_corner(-1, -1, 1), _corner(1, -1, 1), _corner(1, 1, 1), _corner(-1, 1, 1)],
+}
+
+
+@dataclass(frozen=True)
+class BoxCamera:
+    """A box (width 1 along y, ``depth`` along x, ``height`` along z, centred on the
+    origin, front +x) seen by a pinhole camera at ``azimuth`` and ``elevation``
+    (radians, ``mask_agreement.view_rotation``) looking at its centre from far enough
+    that the box fills ``fovy``; ``iou`` is the fit's silhouette IoU. ``pixel_centre``
+    (col, row) and ``pixel_side`` are the centre and side of the mask silhouette's
+    bounding square, which the box's projected bounding square maps onto."""
+
+    azimuth: float
+    elevation: float
+    depth: float
+    height: float
+    fovy: float
+    iou: float
+    pixel_centre: tuple[float, float]
+    pixel_side: float
+
+    @property
+    def half_extents(self) -> np.ndarray:
+        return np.array([self.depth / 2, 0.5, self.height / 2])
+
+    def _plane(self, points: np.ndarray) -> np.ndarray:
+        return _project(
+            points[None], self.azimuth, self.elevation, self.half_extents[None], self.fovy
+        )[0]
+
+    def to_pixels(self, points: np.ndarray) -> np.ndarray:
+        """(N, 2) mask pixel coordinates (col, row; pixel i spans [i, i + 1)) of box-frame
+        points (N, 3)."""
+        corners = self._plane(_CORNERS * self.half_extents)
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        centre, side = (lo + hi) / 2, float((hi - lo).max())
+        p = self._plane(np.asarray(points, float))
+        return np.asarray(self.pixel_centre) + (p - centre) / side * self.pixel_side
+
+
+def _project(
+    points: np.ndarray, azimuth: float, elevation: float, half: np.ndarray, fovy: float
+) -> np.ndarray:
+    """Image-plane coordinates (B, N, 2) (right, down) of points (B, N, 3) of B boxes with
+    half extents ``half`` (B, 3), each seen from the distance at which it fills ``fovy``."""
+    R = view_rotation(azimuth, elevation)
+    q = points @ R.T
+    dist = 1.05 * np.linalg.norm(half, axis=1) / np.sin(fovy / 2)
+    return q[..., :2] / (dist[:, None, None] - q[..., 2:3])
+
+
+def _square_crop(image: np.ndarray, side: int) -> np.ndarray:
+    """``image`` (H, W) cropped to the bounding box of its non-zero pixels, padded to a
+    centred square and resampled (nearest) to ``side`` x ``side``."""
+    rows, cols = np.nonzero(image)
+    m = image[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    n = max(m.shape)
+    sq = np.zeros((n, n), image.dtype)
+    a, b = (n - m.shape[0]) // 2, (n - m.shape[1]) // 2
+    sq[a : a + m.shape[0], b : b + m.shape[1]] = m
+    r = ((np.arange(side) + 0.5) / side * n).astype(np.int64)
+    return sq[r][:, r]
+
+
+def _scores(
+    silhouette: np.ndarray,
+    parts: np.ndarray,
+    azimuth: float,
+    elevation: float,
+    half: np.ndarray,
+    fovy: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(score, silhouette IoU), each (B,), of B boxes ``half`` (B, 3) in one view against
+    the square-cropped silhouette and movable-part pixels (G, G) bool."""
+    G = silhouette.shape[0]
+    g = (np.arange(G) + 0.5) / G
+    U, V = np.meshgrid(g, g)
+    p = _project(_CORNERS[None] * half[:, None, :], azimuth, elevation, half, fovy)  # (B, 8, 2)
+    lo, hi = p.min(axis=1), p.max(axis=1)
+    side = (hi - lo).max(axis=1)
+    lo = (lo + hi) / 2 - side[:, None] / 2
+    pu = lo[:, 0, None, None] + U[None] * side[:, None, None]
+    pv = lo[:, 1, None, None] + V[None] * side[:, None, None]
+    inside = {}
+    for name, face in _FACES.items():
+        quad = p[:, face]  # (B, 4, 2), convex
+        pos = np.ones(pu.shape, bool)
+        neg = np.ones(pu.shape, bool)
+        for i in range(4):
+            a, b = quad[:, i], quad[:, (i + 1) % 4]
+            cross = (b[:, 0] - a[:, 0])[:, None, None] * (pv - a[:, 1, None, None]) - (
+                b[:, 1] - a[:, 1]
+            )[:, None, None] * (pu - a[:, 0, None, None])
+            pos &= cross >= 0
+            neg &= cross <= 0
+        inside[name] = pos | neg
+    box = inside["front"] | inside["left"] | inside["right"] | inside["top"]
+    inter = (box & silhouette).sum(axis=(1, 2))
+    iou = inter / np.maximum(box.sum(axis=(1, 2)) + silhouette.sum() - inter, 1)
+    if parts.any():
+        contained = ((inside["front"] | inside["top"]) & parts).sum(axis=(1, 2)) / parts.sum()
+    else:
+        contained = np.ones(len(half))
+    return iou + CONTAINMENT_WEIGHT * contained, iou
+
+
+def fit_box_camera(
+    mask: np.ndarray,
+    movable_ids: list[int] | tuple[int, ...],
+    depth: float | None = None,
+    fovy: float = FOVY,
+) -> BoxCamera:
+    """The box and camera that best explain a part mask (H, W) (module docstring):
+    ``movable_ids`` are the mask ids of the parts on the front; ``depth`` (the box's
+    depth over its width) is fitted too when None. Raises ValueError for an empty mask."""
+    mask = np.asarray(mask)
+    sil = mask > 0
+    if not sil.any():
+        raise ValueError("the part mask is empty (all background)")
+    labelled = np.where(sil, 1 + np.isin(mask, list(movable_ids)), 0)
+    rasters = {G: (_square_crop(sil, G), _square_crop(labelled, G) == 2) for G in FIT_RASTERS}
+
+    log_d = (
+        np.array([np.log(depth)]) if depth is not None else np.linspace(*np.log(DEPTH_RANGE), 10)
+    )
+    log_h = np.linspace(*np.log(HEIGHT_RANGE), 13)
+    dd, hh = (a.ravel() for a in np.meshgrid(log_d, log_h, indexing="ij"))
+    half = np.stack([np.exp(dd) / 2, np.full(len(dd), 0.5), np.exp(hh) / 2], axis=1)
+    coarse = []
+    S, P = rasters[FIT_RASTERS[0]]
+    for az in np.radians(AZIMUTHS_DEG):
+        for el in np.radians(ELEVATIONS_DEG):
+            score, _ = _scores(S, P, az, el, half, fovy)
+            for i in np.argsort(-score)[:3]:
+                coarse.append((float(score[i]), np.array([az, el, dd[i], hh[i]])))
+    coarse.sort(key=lambda c: -c[0])
+
+    S, P = rasters[FIT_RASTERS[1]]
+
+    def evaluate(x: np.ndarray) -> tuple[float, float]:
+        h = np.array([[np.exp(x[2]) / 2, 0.5, np.exp(x[3]) / 2]])
+        score, iou = _scores(S, P, x[0], x[1], h, fovy)
+        return float(score[0]), float(iou[0])
+
+    best_x, best_score = coarse[0][1], -np.inf
+    for _, x0 in coarse[:REFINE_STARTS]:
+        x = x0.copy()
+        score = evaluate(x)[0]
+        steps = np.array([np.radians(5), np.radians(5), 0.0 if depth is not None else 0.125, 0.125])
+        for _ in range(3):  # coordinate search, the steps halved each round
+            improved = True
+            while improved:
+                improved = False
+                for k in np.flatnonzero(steps):
+                    for sign in (-1.0, 1.0):
+                        y = x.copy()
+                        y[k] += sign * steps[k]
+                        y[1] = np.clip(y[1], 0.0, np.radians(60.0))
+                        s = evaluate(y)[0]
+                        if s > score + 1e-9:
+                            x, score, improved = y, s, True
+            steps = steps / 2
+        if score > best_score:
+            best_x, best_score = x, score
+    rows, cols = np.nonzero(sil)
+    return BoxCamera(
+        azimuth=float(best_x[0]),
+        elevation=float(best_x[1]),
+        depth=float(np.exp(best_x[2])),
+        height=float(np.exp(best_x[3])),
+        fovy=float(fovy),
+        iou=evaluate(best_x)[1],
+        pixel_centre=((cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2),
+        pixel_side=float(max(np.ptp(rows), np.ptp(cols)) + 1),
+    )
+
+
+def _dilate(image: np.ndarray, pixels: int) -> np.ndarray:
+    from scipy import ndimage
+
+    return ndimage.binary_dilation(image, iterations=pixels) if pixels > 0 else image
+
+
+def layout_from_mask(
+    occ: np.ndarray,
+    mask: np.ndarray,
+    slots: list[int],
+    fovy: float = FOVY,
+) -> tuple[np.ndarray, BoxCamera] | None:
+    """Part occupancies (T, R, R, R) rebuilt from a box and camera fitted to the part
+    mask (module docstring), and that fit; None when the sample is empty, the mask shows
+    no movable part or the fit's silhouette IoU is below ``MIN_FIT_IOU``. ``slots`` are
+    the slots the mask shows (slot k <-> mask id k + 1; ids beyond the grids' slots count
+    as the base). The box's depth over width is the sample's; each movable part keeps
+    its depth in the sample (scaled with the box; the median of the others', or
+    ``CARVE_DEPTH`` cells, for a part the sample left empty)."""
+    occ = np.asarray(occ, bool)
+    mask = np.asarray(mask)
+    T, R = occ.shape[0], occ.shape[1]
+    union = occ.any(axis=0)
+    movable = sorted(k for k in slots if 1 <= k < T)
+    if not union.any() or not movable:
+        return None
+    cells = np.argwhere(union)
+    extent = np.ptp(cells, axis=0) + 1
+    camera = fit_box_camera(mask, [k + 1 for k in movable], depth=extent[0] / extent[1], fovy=fovy)
+    if camera.iou < MIN_FIT_IOU:
+        return None
+
+    dims = np.array([camera.depth, 1.0, camera.height])
+    scale = R / dims.max()  # cells per box unit
+    n = np.clip(np.round(dims * scale).astype(np.int64), 1, R)
+    start = (R - n) // 2
+    axes = [(np.arange(R) + 0.5 - (start[a] + n[a] / 2)) / scale for a in range(3)]
+    inside = [(np.arange(R) >= start[a]) & (np.arange(R) < start[a] + n[a]) for a in range(3)]
+
+    H, W = mask.shape
+
+    def mask_at(points: np.ndarray) -> np.ndarray:
+        px = np.floor(camera.to_pixels(points)).astype(np.int64)
+        ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
+        out = np.zeros(len(points), np.int64)
+        out[ok] = mask[px[ok, 1], px[ok, 0]]
+        return out
+
+    def face_labels(axis: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The box's front (``axis`` 0) or top (2) face: (R, R) slot per cell over the two
+        other axes (0 the base: the slot whose mask pixels the cell's centre projects
+        into), the cells' centres (N, 3) and their two indices."""
+        a, b = (i for i in range(3) if i != axis)
+        A, B = (
+            g.ravel()
+            for g in np.meshgrid(
+                np.flatnonzero(inside[a]), np.flatnonzero(inside[b]), indexing="ij"
+            )
+        )
+        pts = np.empty((len(A), 3))
+        pts[:, axis] = camera.half_extents[axis]
+        pts[:, a], pts[:, b] = axes[a][A], axes[b][B]
+        ids = mask_at(pts) - 1
+        label = np.zeros((R, R), np.int64)
+        label[A, B] = np.where(np.isin(ids, movable), ids, 0)
+        return label, pts, (A, B)
+
+    faces = {axis: face_labels(axis) for axis in (0, 2)}
+    # a part goes on the face that holds more of its cells: a lid on the top, else the front
+    home = {k: 2 if (faces[2][0] == k).sum() > (faces[0][0] == k).sum() else 0 for k in movable}
+    for k in movable:  # a part too small to hit a cell centre takes the cell under its centroid
+        label, pts, (A, B) = faces[home[k]]
+        rows, cols = np.nonzero(mask == k + 1)
+        if (label == k).any() or len(rows) == 0:
+            continue
+        pix = camera.to_pixels(pts)
+        nearest = int(np.argmin(np.hypot(pix[:, 0] - cols.mean(), pix[:, 1] - rows.mean())))
+        label[A[nearest], B[nearest]] = k
+
+    def depth(k: int) -> int:
+        """Part ``k``'s depth in cells along its face's axis: the sample's, scaled to the box."""
+        axis = home[k]
+        drawn = {j: int(np.ptp(np.argwhere(occ[j])[:, axis])) + 1 for j in movable if occ[j].any()}
+        cells_deep = drawn.get(k, int(np.median(list(drawn.values()))) if drawn else CARVE_DEPTH)
+        cap = max(1, int(MAX_DEPTH_SHARE * n[axis]))
+        return min(max(1, round(cells_deep / extent[axis] * n[axis])), cap)
+
+    def slab(face: np.ndarray, axis: int, lo: int, hi: int) -> np.ndarray:
+        """(R, R, R) cells over ``face`` (R, R: the two other axes) from ``lo`` to ``hi`` - 1
+        along ``axis``."""
+        along = np.zeros(R, bool)
+        along[max(lo, 0) : hi] = True
+        return np.expand_dims(face, axis) & along.reshape(
+            [-1 if i == axis else 1 for i in range(3)]
+        )
+
+    box = inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None, :]
+    out = np.zeros_like(occ)
+    base = box.copy()
+    # carved where the camera sees background through the box
+    idx = np.argwhere(box)
+    centres = np.stack([axes[0][idx[:, 0]], axes[1][idx[:, 1]], axes[2][idx[:, 2]]], 1)
+    sil = _dilate(mask > 0, SILHOUETTE_MARGIN)
+
+    def seen(points: np.ndarray) -> np.ndarray:
+        px = np.floor(camera.to_pixels(points)).astype(np.int64)
+        ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
+        out = np.zeros(len(points), bool)
+        out[ok] = sil[px[ok, 1], px[ok, 0]]
+        return out
+
+    keep = seen(centres)
+    if camera.iou < BOX_IOU:  # not quite a box (module docstring): a cell also needs its
+        # mirror image across the middle (furniture is mostly left-right symmetric) seen in
+        # the silhouette, or to lie in the sample (a one-sided pedestal)
+        lo = cells.min(axis=0)
+        grown = _dilate(union, SAMPLE_MARGIN)
+        src = np.clip(np.floor(lo + (idx + 0.5 - start) / n * extent).astype(np.int64), 0, R - 1)
+        keep &= seen(centres * np.array([1.0, -1.0, 1.0])) | grown[tuple(src.T)]
+    base[tuple(idx[~keep].T)] = False
+
+    from scipy import ndimage
+
+    taken = np.zeros((R, R, R), bool)
+    for k in sorted(movable, key=lambda j: home[j]):  # the front's parts first
+        axis = home[k]
+        face = faces[axis][0] == k
+        if not face.any():
+            continue
+        d = depth(k)
+        outer = int(start[axis] + n[axis] - 1)  # the front's or the top's cell index
+        part = slab(face, axis, outer - d + 1, outer + 1) & ~taken
+        out[k] = part
+        taken |= part
+        base &= ~part
+        if d <= PANEL_SHARE * n[axis]:  # a door or lid: a cavity behind it, inside the walls
+            inner = ndimage.binary_erosion(face)
+            base &= ~slab(inner, axis, int(start[axis]) + 1, outer - d + 1)
+    out[0] = base
+    return out, camera

@@ -1,0 +1,193 @@
+"""The box and camera fitted to a part mask, and the part grids laid out from them.
+
+The masks here are ray-cast independently of the module: a pinhole camera at a known
+azimuth, elevation and field of view looks at an axis-aligned box (or a table: a top on
+four legs) whose front carries the movable parts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from generator.pact.mask_agreement import view_rotation
+from generator.pact.mask_layout import MIN_FIT_IOU, fit_box_camera, layout_from_mask
+
+SIZE = 128
+
+
+def _raycast(boxes, azimuth_deg, elevation_deg, fovy_deg=40.0, size=SIZE):
+    """Part-id image (size, size) of axis-aligned boxes [(lo, hi, id), ...] (the nearest
+    hit wins) seen by a pinhole camera at the given azimuth and elevation, looking at the
+    origin from 2.2 units away."""
+    R = view_rotation(np.radians(azimuth_deg), np.radians(elevation_deg))
+    eye = 2.2 * R[2]
+    f = 0.5 * size / np.tan(np.radians(fovy_deg) / 2)
+    u, v = np.meshgrid(np.arange(size) + 0.5 - size / 2, np.arange(size) + 0.5 - size / 2)
+    dirs = u[..., None] / f * R[0] + v[..., None] / f * R[1] - R[2]  # right, down, forward
+    dirs = dirs.reshape(-1, 3)
+    best = np.full(len(dirs), np.inf)
+    out = np.zeros(len(dirs), np.uint8)
+    for lo, hi, pid in boxes:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (np.asarray(lo) - eye) / dirs
+            t2 = (np.asarray(hi) - eye) / dirs
+        near = np.nanmax(np.minimum(t1, t2), axis=1)
+        far = np.nanmin(np.maximum(t1, t2), axis=1)
+        hit = (near <= far) & (near > 0) & (near < best)
+        best[hit] = near[hit]
+        out[hit] = pid
+    return out.reshape(size, size)
+
+
+def _chest(top_id=2, bottom_id=3):
+    """A chest 0.5 deep, 1 wide, 0.8 tall (x, y, z), two drawer fronts on its face."""
+    return [
+        ((-0.25, -0.5, -0.4), (0.25, 0.5, 0.4), 1),
+        ((0.25, -0.45, 0.02), (0.27, 0.45, 0.35), top_id),
+        ((0.25, -0.45, -0.35), (0.27, 0.45, -0.02), bottom_id),
+    ]
+
+
+def test_fit_box_camera_recovers_view_and_proportions():
+    mask = _raycast(_chest(), azimuth_deg=35.0, elevation_deg=20.0)
+    cam = fit_box_camera(mask, [2, 3])
+    assert cam.iou > 0.9
+    assert abs(np.degrees(cam.azimuth) - 35.0) < 6.0
+    assert abs(np.degrees(cam.elevation) - 20.0) < 6.0
+    assert abs(np.log(cam.height / 0.8)) < 0.12  # height over width
+    assert abs(np.log(cam.depth / 0.52)) < 0.3  # depth over width (the fronts stand out)
+    # seen from the other side, the front (where the parts are) is on the other side
+    mirrored = fit_box_camera(_raycast(_chest(), azimuth_deg=-35.0, elevation_deg=20.0), [2, 3])
+    assert abs(np.degrees(mirrored.azimuth) + 35.0) < 6.0
+
+
+def test_fit_box_camera_maps_the_box_onto_the_mask():
+    mask = _raycast(_chest(), azimuth_deg=30.0, elevation_deg=15.0)
+    cam = fit_box_camera(mask, [2, 3], depth=0.52)
+    h = cam.half_extents
+    # the front face's centres of the upper and lower halves land on the two drawers
+    upper = cam.to_pixels(np.array([[h[0], 0.0, 0.5 * h[2]]]))[0]
+    lower = cam.to_pixels(np.array([[h[0], 0.0, -0.5 * h[2]]]))[0]
+    assert mask[int(upper[1]), int(upper[0])] == 2
+    assert mask[int(lower[1]), int(lower[0])] == 3
+    # the box's far back corner low on the hidden side projects outside the silhouette's box
+    rows, cols = np.nonzero(mask)
+    back = cam.to_pixels(np.array([[-h[0], -0.5, h[2]]]))[0]
+    assert rows.min() - 3 <= back[1] <= rows.max() + 3
+
+
+def _sample(depth: int, R=32):
+    """A stage-1 sample of the chest with its drawers swapped round and the base full of
+    holes: slot 1 low on the front, slot 2 high, ``depth`` cells deep (of 16)."""
+    occ = np.zeros((4, R, R, R), bool)
+    occ[0, 8:24, 0:32, 6:26] = True
+    occ[0, 10:20:3, 4:28:3, 8:24:3] = False  # holes
+    occ[0, 24 - depth : 24] = False
+    occ[1, 24 - depth : 24, 1:31, 7:15] = True
+    occ[2, 24 - depth : 24, 1:31, 17:25] = True
+    return occ
+
+
+def test_layout_puts_parts_where_the_mask_shows_them():
+    from scipy import ndimage
+
+    mask = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
+    out, cam = layout_from_mask(_sample(depth=10), mask, [0, 1, 2])
+    assert cam.iou > 0.9
+    # slot 1 (mask id 2) is now on top, slot 2 (id 3) at the bottom
+    z1 = np.argwhere(out[1])[:, 2].mean()
+    z2 = np.argwhere(out[2])[:, 2].mean()
+    assert z1 > z2 + 4
+    # both sit on the front face, as deep as in the sample (10 of the box's 16 cells)
+    union = out.any(axis=0)
+    front = np.argwhere(union)[:, 0].max()
+    assert np.ptp(np.argwhere(union)[:, 0]) + 1 == 16
+    for k in (1, 2):
+        xs = np.unique(np.argwhere(out[k])[:, 0])
+        assert xs.max() == front
+        assert len(xs) == 10
+    # parts are disjoint; the base is one closed block round the drawers: its holes are gone
+    assert (
+        not (out[0] & out[1]).any() and not (out[0] & out[2]).any() and not (out[1] & out[2]).any()
+    )
+    assert ndimage.label(out[0])[1] == 1
+    assert not (ndimage.binary_fill_holes(union) & ~union).any()
+
+
+def test_layout_leaves_a_cavity_behind_a_panel():
+    from scipy import ndimage
+
+    mask = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
+    out, _ = layout_from_mask(_sample(depth=2), mask, [0, 1, 2])
+    union = out.any(axis=0)
+    for k in (1, 2):
+        assert len(np.unique(np.argwhere(out[k])[:, 0])) == 2
+    cavity = ndimage.binary_fill_holes(union) & ~union
+    assert cavity.sum() > 0.3 * union.sum()  # the space behind the doors, closed by walls
+    assert ndimage.label(out[0])[1] == 1
+
+
+def test_layout_carves_a_table_between_its_legs():
+    legs = [
+        ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)
+        for sx in (-1, 1)
+        for sy in (-1, 1)
+    ]
+    table = [
+        ((-0.25, -0.5, 0.25), (0.25, 0.5, 0.4), 1),
+        *legs,
+        ((0.25, 0.1, 0.27), (0.27, 0.4, 0.38), 2),
+    ]
+    mask = _raycast(table, azimuth_deg=35.0, elevation_deg=15.0)
+    R = 32
+    occ = np.zeros((3, R, R, R), bool)
+    occ[0, 8:24, :, 21:26] = True  # the sample: a top on four rough legs
+    for x in (8, 20):
+        for y in (0, 28):
+            occ[0, x : x + 4, y : y + 4, 6:21] = True
+    occ[1, 22:24, 18:28, 20:25] = True
+    out, _ = layout_from_mask(occ, mask, [0, 1])
+    base = out[0]
+    zs = np.argwhere(base)[:, 2]
+    feet = base[:, :, zs.min() : zs.min() + 4].sum() / 4  # cells per layer
+    top = base[:, :, zs.max() - 1 : zs.max() + 1].sum() / 2
+    assert feet < 0.4 * top  # between the feet mostly empty
+    xs, ys = np.argwhere(base)[:, 0], np.argwhere(base)[:, 1]
+    middle = base[(xs.min() + xs.max()) // 2, (ys.min() + ys.max()) // 2, zs.min() : zs.min() + 6]
+    assert not middle.any()
+    assert out[1].any()
+
+
+def test_layout_declines_what_is_no_box():
+    R = 16
+    occ = np.zeros((2, R, R, R), bool)
+    occ[0, 4:12, 4:12, 4:12] = True
+    occ[1, 12, 6:10, 6:10] = True
+    # an empty sample, a mask without movable parts
+    assert layout_from_mask(np.zeros_like(occ), np.ones((8, 8), np.uint8), [0, 1]) is None
+    assert layout_from_mask(occ, np.ones((8, 8), np.uint8), [0]) is None
+    # a thin diagonal stroke: no box explains it
+    mask = np.zeros((64, 64), np.uint8)
+    for i in range(64):
+        mask[i, max(0, i - 1) : i + 1] = 1
+    mask[30:33, 29:32] = 2
+    cam = fit_box_camera(mask, [2])
+    assert cam.iou < MIN_FIT_IOU
+    assert layout_from_mask(occ, mask, [0, 1]) is None
+
+
+def test_layout_puts_a_lid_on_top():
+    washer = [
+        ((-0.3, -0.5, -0.5), (0.3, 0.5, 0.5), 1),
+        ((-0.2, -0.35, 0.5), (0.2, 0.35, 0.52), 2),  # the lid, on the top face
+    ]
+    mask = _raycast(washer, azimuth_deg=30.0, elevation_deg=30.0)
+    R = 32
+    occ = np.zeros((2, R, R, R), bool)
+    occ[0, 6:26, 0:32, 0:30] = True
+    occ[1, 24:26, 8:24, 10:20] = True  # the sample drew it as a panel on the front
+    out, _ = layout_from_mask(occ, mask, [0, 1])
+    lid = np.argwhere(out[1])
+    top = np.argwhere(out.any(axis=0))[:, 2].max()
+    assert lid[:, 2].max() == top
+    assert np.ptp(lid[:, 0]) + 1 >= 8  # spread across the top, not a sliver on the front
+    assert not (out[0] & out[1]).any()
