@@ -173,21 +173,3 @@ def test_layout_declines_what_is_no_box():
     cam = fit_box_camera(mask, [2])
     assert cam.iou < MIN_FIT_IOU
     assert layout_from_mask(occ, mask, [0, 1]) is None
-
-
-def test_layout_puts_a_lid_on_top():
-    washer = [
-        ((-0.3, -0.5, -0.5), (0.3, 0.5, 0.5), 1),
-        ((-0.2, -0.35, 0.5), (0.2, 0.35, 0.52), 2),  # the lid, on the top face
-    ]
-    mask = _raycast(washer, azimuth_deg=30.0, elevation_deg=30.0)
-    R = 32
-    occ = np.zeros((2, R, R, R), bool)
-    occ[0, 6:26, 0:32, 0:30] = True
-    occ[1, 24:26, 8:24, 10:20] = True  # the sample drew it as a panel on the front
-    out, _ = layout_from_mask(occ, mask, [0, 1])
-    lid = np.argwhere(out[1])
-    top = np.argwhere(out.any(axis=0))[:, 2].max()
-    assert lid[:, 2].max() == top
-    assert np.ptp(lid[:, 0]) + 1 >= 8  # spread across the top, not a sliver on the front
-    assert not (out[0] & out[1]).any()

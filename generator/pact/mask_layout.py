@@ -167,7 +167,7 @@ def _scores(
     inter = (box & silhouette).sum(axis=(1, 2))
     iou = inter / np.maximum(box.sum(axis=(1, 2)) + silhouette.sum() - inter, 1)
     if parts.any():
-        contained = ((inside["front"] | inside["top"]) & parts).sum(axis=(1, 2)) / parts.sum()
+        contained = (inside["front"] & parts).sum(axis=(1, 2)) / parts.sum()
     else:
         contained = np.ones(len(half))
     return iou + CONTAINMENT_WEIGHT * contained, iou
@@ -292,53 +292,27 @@ def layout_from_mask(
         out[ok] = mask[px[ok, 1], px[ok, 0]]
         return out
 
-    def face_labels(axis: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
-        """The box's front (``axis`` 0) or top (2) face: (R, R) slot per cell over the two
-        other axes (0 the base: the slot whose mask pixels the cell's centre projects
-        into), the cells' centres (N, 3) and their two indices."""
-        a, b = (i for i in range(3) if i != axis)
-        A, B = (
-            g.ravel()
-            for g in np.meshgrid(
-                np.flatnonzero(inside[a]), np.flatnonzero(inside[b]), indexing="ij"
-            )
-        )
-        pts = np.empty((len(A), 3))
-        pts[:, axis] = camera.half_extents[axis]
-        pts[:, a], pts[:, b] = axes[a][A], axes[b][B]
-        ids = mask_at(pts) - 1
-        label = np.zeros((R, R), np.int64)
-        label[A, B] = np.where(np.isin(ids, movable), ids, 0)
-        return label, pts, (A, B)
-
-    faces = {axis: face_labels(axis) for axis in (0, 2)}
-    # a part goes on the face that holds more of its cells: a lid on the top, else the front
-    home = {k: 2 if (faces[2][0] == k).sum() > (faces[0][0] == k).sum() else 0 for k in movable}
+    # the front face's cells, labelled with the slot whose mask pixels their centres hit
+    Y, Z = (
+        g.ravel()
+        for g in np.meshgrid(np.flatnonzero(inside[1]), np.flatnonzero(inside[2]), indexing="ij")
+    )
+    pts = np.stack([np.full(len(Y), camera.depth / 2), axes[1][Y], axes[2][Z]], axis=1)
+    ids = mask_at(pts) - 1
+    label = np.zeros((R, R), np.int64)  # (y, z) -> slot on the front, 0 the base
+    label[Y, Z] = np.where(np.isin(ids, movable), ids, 0)
     for k in movable:  # a part too small to hit a cell centre takes the cell under its centroid
-        label, pts, (A, B) = faces[home[k]]
         rows, cols = np.nonzero(mask == k + 1)
         if (label == k).any() or len(rows) == 0:
             continue
         pix = camera.to_pixels(pts)
         nearest = int(np.argmin(np.hypot(pix[:, 0] - cols.mean(), pix[:, 1] - rows.mean())))
-        label[A[nearest], B[nearest]] = k
+        label[Y[nearest], Z[nearest]] = k
 
-    def depth(k: int) -> int:
-        """Part ``k``'s depth in cells along its face's axis: the sample's, scaled to the box."""
-        axis = home[k]
-        drawn = {j: int(np.ptp(np.argwhere(occ[j])[:, axis])) + 1 for j in movable if occ[j].any()}
-        cells_deep = drawn.get(k, int(np.median(list(drawn.values()))) if drawn else CARVE_DEPTH)
-        cap = max(1, int(MAX_DEPTH_SHARE * n[axis]))
-        return min(max(1, round(cells_deep / extent[axis] * n[axis])), cap)
-
-    def slab(face: np.ndarray, axis: int, lo: int, hi: int) -> np.ndarray:
-        """(R, R, R) cells over ``face`` (R, R: the two other axes) from ``lo`` to ``hi`` - 1
-        along ``axis``."""
-        along = np.zeros(R, bool)
-        along[max(lo, 0) : hi] = True
-        return np.expand_dims(face, axis) & along.reshape(
-            [-1 if i == axis else 1 for i in range(3)]
-        )
+    drawn = {k: int(np.ptp(np.argwhere(occ[k])[:, 0])) + 1 for k in movable if occ[k].any()}
+    fallback = int(np.median(list(drawn.values()))) if drawn else CARVE_DEPTH
+    cap = max(1, int(MAX_DEPTH_SHARE * n[0]))
+    front = int(start[0] + n[0] - 1)
 
     box = inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None, :]
     out = np.zeros_like(occ)
@@ -367,20 +341,19 @@ def layout_from_mask(
 
     from scipy import ndimage
 
-    taken = np.zeros((R, R, R), bool)
-    for k in sorted(movable, key=lambda j: home[j]):  # the front's parts first
-        axis = home[k]
-        face = faces[axis][0] == k
+    for k in movable:
+        face = label == k
         if not face.any():
             continue
-        d = depth(k)
-        outer = int(start[axis] + n[axis] - 1)  # the front's or the top's cell index
-        part = slab(face, axis, outer - d + 1, outer + 1) & ~taken
+        d = min(max(1, round(drawn.get(k, fallback) / extent[0] * n[0])), cap)
+        part = np.zeros((R, R, R), bool)
+        part[front - d + 1 : front + 1] = face[None]
         out[k] = part
-        taken |= part
         base &= ~part
-        if d <= PANEL_SHARE * n[axis]:  # a door or lid: a cavity behind it, inside the walls
+        if d <= PANEL_SHARE * n[0]:  # a door: a cavity behind it, inside the base's walls
             inner = ndimage.binary_erosion(face)
-            base &= ~slab(inner, axis, int(start[axis]) + 1, outer - d + 1)
+            back = int(start[0]) + 1
+            if front - d >= back:
+                base[back : front - d + 1] &= ~inner[None]
     out[0] = base
     return out, camera

@@ -25,14 +25,19 @@ drawn per image and one is kept: among the samples whose tidied parts
 no sample does), the one whose parts agree best with the mask when rendered
 (``mask_agreement.agreement``). The mask is the user's part list and layout; a sample
 that leaves one of its parts empty (the small model does for about one object in six)
-or puts a drawer in the wrong row is wrong whatever its other parts look like. A part
+or puts a drawer in the wrong row is wrong whatever its other parts look like. The kept
+sample's grids are then rebuilt from a box and camera fitted to the mask
+(``mask_layout.layout_from_mask``: the parts where the mask puts them on the box's front,
+as deep as the sample drew them; ``mask_layout=False`` turns it off). When no
+box explains the mask's silhouette, instead: a part
 the mask shows that the kept sample still leaves empty is carved out of the base where
 the mask puts it (``mask_agreement.carve_missing``), the movable parts on the front
 are relabelled after the mask (``mask_agreement.relabel_front``), and the sample's height
 is fitted to the proportions of the mask's silhouette (``mask_agreement.fit_height``;
 ``fit_height=False`` turns it off). Without a mask there is nothing to check against,
 and one sample is drawn. With or without a mask, holes in the object's outer shell are
-then filled (``stage1.close_surface``; ``close_surface=False`` turns it off).
+then filled (``stage1.close_surface``; ``close_surface=False`` turns it off), except in
+a laid-out sample, closed already.
 """
 
 from __future__ import annotations
