@@ -323,9 +323,11 @@ def layout_from_mask(
     sil = _dilate(mask > 0, SILHOUETTE_MARGIN)
 
     def seen(points: np.ndarray) -> np.ndarray:
+        """Whether each point projects into the silhouette (or out of the photo: a photo
+        that cuts the object off says nothing about what it cuts)."""
         px = np.floor(camera.to_pixels(points)).astype(np.int64)
         ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
-        out = np.zeros(len(points), bool)
+        out = np.ones(len(points), bool)
         out[ok] = sil[px[ok, 1], px[ok, 0]]
         return out
 
