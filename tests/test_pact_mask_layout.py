@@ -113,20 +113,16 @@ def test_layout_puts_parts_where_the_mask_shows_them():
     assert not (ndimage.binary_fill_holes(union) & ~union).any()
 
 
-def test_layout_backs_a_thin_part_with_the_base():
+def test_layout_leaves_a_cavity_behind_a_panel():
     from scipy import ndimage
 
     mask = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
     out, _ = layout_from_mask(_sample(depth=2), mask, [0, 1, 2])
     union = out.any(axis=0)
     for k in (1, 2):
-        xs = np.unique(np.argwhere(out[k])[:, 0])
-        assert len(xs) == 2
-        # right behind the part, the base
-        behind = np.zeros_like(out[k])
-        behind[xs.min() - 1] = out[k][xs.min()]
-        assert out[0][behind].all()
-    assert not (ndimage.binary_fill_holes(union) & ~union).any()
+        assert len(np.unique(np.argwhere(out[k])[:, 0])) == 2
+    cavity = ndimage.binary_fill_holes(union) & ~union
+    assert cavity.sum() > 0.3 * union.sum()  # the space behind the doors, closed by walls
     assert ndimage.label(out[0])[1] == 1
 
 

@@ -23,9 +23,9 @@ stage-1 sample and fits the rest).
 :func:`layout_from_mask` then rebuilds the sample's part grids: the base is the box,
 carved where the camera sees background through it (a desk's kneehole, the space
 between a table's legs), each movable part takes the cells of the front face whose
-centres project into its mask pixels, as deep as the sample drew it (the base fills in
-behind it: a cavity behind a thin part the head then calls a drawer left it too short
-for its slide, failing validation). Stage 2 then decodes these grids like any others.
+centres project into its mask pixels, as deep as the sample drew it, and a panel (a
+part at most ``PANEL_SHARE`` of the box's depth deep: a door) leaves a cavity behind it
+inside the base's walls. Stage 2 then decodes these grids like any others.
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ MIN_FIT_IOU = 0.5  # below this silhouette IoU the object is no box: the layout 
 BOX_IOU = 0.85
 SAMPLE_MARGIN = 1
 SILHOUETTE_MARGIN = 2  # pixels the silhouette grows by before it carves the base
+PANEL_SHARE = 0.35  # a part at most this share of the box's depth deep is a panel (door)
 MAX_DEPTH_SHARE = 0.9  # no part is deeper than this share of the box's depth
 
 # the box's 8 corners (signs along x, y, z) and its four faces a camera in front sees
@@ -340,6 +341,8 @@ def layout_from_mask(
         keep &= seen(centres * np.array([1.0, -1.0, 1.0])) | grown[tuple(src.T)]
     base[tuple(idx[~keep].T)] = False
 
+    from scipy import ndimage
+
     for k in movable:
         face = label == k
         if not face.any():
@@ -349,5 +352,10 @@ def layout_from_mask(
         part[front - d + 1 : front + 1] = face[None]
         out[k] = part
         base &= ~part
+        if d <= PANEL_SHARE * n[0]:  # a door: a cavity behind it, inside the base's walls
+            inner = ndimage.binary_erosion(face)
+            back = int(start[0]) + 1
+            if front - d >= back:
+                base[back : front - d + 1] &= ~inner[None]
     out[0] = base
     return out, camera
