@@ -25,9 +25,7 @@ carved where the camera sees background through it (a desk's kneehole, the space
 between a table's legs), each movable part takes the cells of the front face whose
 centres project into its mask pixels, as deep as the sample drew it, and a panel (a
 part at most ``PANEL_SHARE`` of the box's depth deep: a door) leaves a cavity behind it
-inside the base's walls, unless it is one cell deep or its front is smaller than
-``MIN_FRONT_VOXELS`` (a sliver the head may call a drawer: in front of a cavity it is too
-short for its slide, and validation fails). Stage 2 then decodes these grids like any others.
+inside the base's walls. Stage 2 then decodes these grids like any others.
 """
 
 from __future__ import annotations
@@ -36,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mask_agreement import CARVE_DEPTH, MIN_FRONT_VOXELS, view_rotation
+from .mask_agreement import CARVE_DEPTH, view_rotation
 
 FOVY = np.radians(45.0)  # the assumed camera's vertical field of view
 FIT_RASTERS = (24, 40)  # silhouette raster side: the coarse grid, the refinement
@@ -54,7 +52,6 @@ BOX_IOU = 0.85
 SAMPLE_MARGIN = 1
 SILHOUETTE_MARGIN = 2  # pixels the silhouette grows by before it carves the base
 PANEL_SHARE = 0.35  # a part at most this share of the box's depth deep is a panel (door)
-MIN_PANEL_CELLS = 2  # ... and at least this many cells deep to have a cavity behind it
 MAX_DEPTH_SHARE = 0.9  # no part is deeper than this share of the box's depth
 
 # the box's 8 corners (signs along x, y, z) and its four faces a camera in front sees
@@ -355,9 +352,7 @@ def layout_from_mask(
         part[front - d + 1 : front + 1] = face[None]
         out[k] = part
         base &= ~part
-        span = sorted(int(np.ptp(np.nonzero(face)[a])) + 1 for a in (0, 1))
-        big = span[0] >= MIN_FRONT_VOXELS[0] and span[1] >= MIN_FRONT_VOXELS[1]
-        if big and MIN_PANEL_CELLS <= d <= PANEL_SHARE * n[0]:  # a door: a cavity behind it
+        if d <= PANEL_SHARE * n[0]:  # a door: a cavity behind it, inside the base's walls
             inner = ndimage.binary_erosion(face)
             back = int(start[0]) + 1
             if front - d >= back:
