@@ -11,7 +11,8 @@ meshes as the visuals:
 1. Each movable part gets the axis-aligned box of the bulk of its mesh
    (:func:`robust_bounds`), lifted off the floor by ``clearance``, cut off
    ``BACK_WALL`` of the object's depth short of its back and brought flush with the
-   object's face when recessed by up to ``FLUSH`` of the depth. Its joint axis snaps
+   object's face when recessed by up to ``FLUSH`` of the depth; a drawer reaches at
+   least ``DRAWER_BODY`` of the depth back from its front. Its joint axis snaps
    to the nearest of the frame's axes (furniture and appliances are axis-aligned in the
    object frame: front +x, z up). A part's *outward normal* is the side it opens toward:
    for a prismatic part its axis, for a revolute part the axis across the hinge along
@@ -95,6 +96,11 @@ BACK_WALL = 0.1
 #: a drawer centred in the depth would not visibly move away from the base, a door
 #: sunk in a pocket is out of a gripper's reach).
 FLUSH = 0.5
+#: A drawer's box reaches at least this fraction of the object's depth back from its
+#: front: a drawer front alone, a panel the head calls a drawer, would otherwise slide out
+#: of its slot within a few centimetres (at its limit, less of it than the validation's
+#: ``drawer_engaged`` wants stays inside the base).
+DRAWER_BODY = 0.5
 #: A bar handle on every part without one (m): length, radius, standoff of the bar's
 #: axis from the face, and (doors) its distance from the free edge.
 HANDLE_M = (0.12, 0.008, 0.03, 0.035)
@@ -347,6 +353,12 @@ def fit_box_layout(obj: ArticulatedObject, clearance: float | None = None) -> Ar
             m.hi[n] = min(m.hi[n], outer_hi[n] - BACK_WALL * depth)
             if m.lo[n] - outer_lo[n] <= FLUSH * depth:
                 m.lo[n] = outer_lo[n]
+        if m.part.joint.type == "prismatic" and m.hi[n] - m.lo[n] < DRAWER_BODY * depth:
+            # a drawer front alone (a panel the head calls a drawer): its body reaches back
+            if m.normal_sign > 0:
+                m.lo[n] = max(m.hi[n] - DRAWER_BODY * depth, outer_lo[n] + BACK_WALL * depth)
+            else:
+                m.hi[n] = min(m.lo[n] + DRAWER_BODY * depth, outer_hi[n] - BACK_WALL * depth)
     for m in moving:
         _widen_shallow_front(m, min_face, outer)
     # a thick door trimmed on its hinge side sweeps further: a pair apart before may meet

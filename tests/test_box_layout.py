@@ -11,6 +11,8 @@ import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
 from generator.box_layout import (
+    BACK_WALL,
+    DRAWER_BODY,
     HANDLE_M,
     MAX_SLIDE,
     MIN_FACE_M,
@@ -241,6 +243,37 @@ def test_a_shallow_drawer_is_widened_to_the_smallest_face_not_merged():
     assert (b[0, 2] + b[1, 2]) / 2 == pytest.approx(0.215)
     assert b[1, 1] - b[0, 1] == pytest.approx(0.3)
     for prim in out.parts[0].primitives:  # no base box in the widened drawer's slot
+        c, size = prim.transform[:3, 3], prim.size
+        lo, hi = c - size / 2, c + size / 2
+        assert np.any(hi <= b[0] + 1e-9) or np.any(lo >= b[1] - 1e-9)
+
+
+def test_a_drawer_front_alone_gets_a_body_reaching_back():
+    """scale = 1: a panel 2 cm deep on the face of a 60 cm deep base, typed a drawer, gets
+    a box DRAWER_BODY of the depth deep (a slide of a centimetre or two would leave it
+    hanging out of its slot); its slot is cut from the base; a deep drawer keeps its box
+    (cut BACK_WALL short of the back)."""
+    front = Part(
+        "drawer_1",
+        "drawer",
+        _box((0.28, -0.2, 0.1), (0.3, 0.2, 0.3)),
+        Joint("prismatic", [0.3, 0, 0.2], [1, 0, 0], 0.0, 0.015),
+    )
+    deep = Part(
+        "drawer_2",
+        "drawer",
+        _box((-0.3, -0.2, -0.3), (0.3, 0.2, -0.1)),
+        Joint("prismatic", [0.3, 0, -0.2], [1, 0, 0], 0.0, 0.3),
+    )
+    out = fit_box_layout(ArticulatedObject([_base(), front, deep], scale=1.0), clearance=GAP)
+    parts = {p.name: p for p in out.parts}
+    b = _bounds(parts["drawer_1"])
+    assert b[1, 0] == pytest.approx(0.3)
+    assert b[0, 0] == pytest.approx(0.3 - DRAWER_BODY * 0.6)
+    assert parts["drawer_1"].joint.upper >= 0.2 * DRAWER_BODY * 0.6 - 1e-9
+    d = _bounds(parts["drawer_2"])
+    assert d[0, 0] == pytest.approx(-0.3 + BACK_WALL * 0.6)
+    for prim in parts["base"].primitives:  # no base box in the drawer's slot
         c, size = prim.transform[:3, 3], prim.size
         lo, hi = c - size / 2, c + size / 2
         assert np.any(hi <= b[0] + 1e-9) or np.any(lo >= b[1] - 1e-9)
