@@ -69,10 +69,12 @@ def test_fit_box_camera_maps_the_box_onto_the_mask():
     lower = cam.to_pixels(np.array([[h[0], 0.0, -0.5 * h[2]]]))[0]
     assert mask[int(upper[1]), int(upper[0])] == 2
     assert mask[int(lower[1]), int(lower[0])] == 3
-    # the box's far back corner low on the hidden side projects outside the silhouette's box
+    # the box's projected corners span the silhouette's bounding box
     rows, cols = np.nonzero(mask)
-    back = cam.to_pixels(np.array([[-h[0], -0.5, h[2]]]))[0]
-    assert rows.min() - 3 <= back[1] <= rows.max() + 3
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    px = cam.to_pixels(corners * h)
+    assert np.allclose(px.min(axis=0), [cols.min(), rows.min()], atol=3)
+    assert np.allclose(px.max(axis=0), [cols.max() + 1, rows.max() + 1], atol=3)
 
 
 def _sample(depth: int, R=32):

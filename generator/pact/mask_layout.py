@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from .mask_agreement import CARVE_DEPTH, view_rotation
 
@@ -244,10 +245,15 @@ def fit_box_camera(
     )
 
 
-def _dilate(image: np.ndarray, pixels: int) -> np.ndarray:
-    from scipy import ndimage
-
-    return ndimage.binary_dilation(image, iterations=pixels) if pixels > 0 else image
+def _read(image: np.ndarray, camera: BoxCamera, points: np.ndarray, outside) -> np.ndarray:
+    """``image`` (H, W: the mask or the silhouette) at the pixels box-frame ``points``
+    (N, 3) project to; ``outside`` where they fall out of the image."""
+    H, W = image.shape
+    px = np.floor(camera.to_pixels(points)).astype(np.int64)
+    ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
+    out = np.full(len(points), outside, image.dtype)
+    out[ok] = image[px[ok, 1], px[ok, 0]]
+    return out
 
 
 def layout_from_mask(
@@ -283,29 +289,20 @@ def layout_from_mask(
     axes = [(np.arange(R) + 0.5 - (start[a] + n[a] / 2)) / scale for a in range(3)]
     inside = [(np.arange(R) >= start[a]) & (np.arange(R) < start[a] + n[a]) for a in range(3)]
 
-    H, W = mask.shape
-
-    def mask_at(points: np.ndarray) -> np.ndarray:
-        px = np.floor(camera.to_pixels(points)).astype(np.int64)
-        ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
-        out = np.zeros(len(points), np.int64)
-        out[ok] = mask[px[ok, 1], px[ok, 0]]
-        return out
-
     # the front face's cells, labelled with the slot whose mask pixels their centres hit
     Y, Z = (
         g.ravel()
         for g in np.meshgrid(np.flatnonzero(inside[1]), np.flatnonzero(inside[2]), indexing="ij")
     )
     pts = np.stack([np.full(len(Y), camera.depth / 2), axes[1][Y], axes[2][Z]], axis=1)
-    ids = mask_at(pts) - 1
+    ids = _read(mask, camera, pts, 0).astype(np.int64) - 1
     label = np.zeros((R, R), np.int64)  # (y, z) -> slot on the front, 0 the base
     label[Y, Z] = np.where(np.isin(ids, movable), ids, 0)
+    pix = camera.to_pixels(pts)
     for k in movable:  # a part too small to hit a cell centre takes the cell under its centroid
         rows, cols = np.nonzero(mask == k + 1)
         if (label == k).any() or len(rows) == 0:
             continue
-        pix = camera.to_pixels(pts)
         nearest = int(np.argmin(np.hypot(pix[:, 0] - cols.mean(), pix[:, 1] - rows.mean())))
         label[Y[nearest], Z[nearest]] = k
 
@@ -320,28 +317,19 @@ def layout_from_mask(
     # carved where the camera sees background through the box
     idx = np.argwhere(box)
     centres = np.stack([axes[0][idx[:, 0]], axes[1][idx[:, 1]], axes[2][idx[:, 2]]], 1)
-    sil = _dilate(mask > 0, SILHOUETTE_MARGIN)
-
-    def seen(points: np.ndarray) -> np.ndarray:
-        """Whether each point projects into the silhouette (or out of the photo: a photo
-        that cuts the object off says nothing about what it cuts)."""
-        px = np.floor(camera.to_pixels(points)).astype(np.int64)
-        ok = (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
-        out = np.ones(len(points), bool)
-        out[ok] = sil[px[ok, 1], px[ok, 0]]
-        return out
-
-    keep = seen(centres)
+    sil = ndimage.binary_dilation(mask > 0, iterations=SILHOUETTE_MARGIN)
+    # a cell projecting out of the photo is kept: a photo that cuts the object off says
+    # nothing about what it cuts
+    keep = _read(sil, camera, centres, True)
     if camera.iou < BOX_IOU:  # not quite a box (module docstring): a cell also needs its
         # mirror image across the middle (furniture is mostly left-right symmetric) seen in
         # the silhouette, or to lie in the sample (a one-sided pedestal)
         lo = cells.min(axis=0)
-        grown = _dilate(union, SAMPLE_MARGIN)
+        grown = ndimage.binary_dilation(union, iterations=SAMPLE_MARGIN)
         src = np.clip(np.floor(lo + (idx + 0.5 - start) / n * extent).astype(np.int64), 0, R - 1)
-        keep &= seen(centres * np.array([1.0, -1.0, 1.0])) | grown[tuple(src.T)]
+        mirrored = _read(sil, camera, centres * np.array([1.0, -1.0, 1.0]), True)
+        keep &= mirrored | grown[tuple(src.T)]
     base[tuple(idx[~keep].T)] = False
-
-    from scipy import ndimage
 
     for k in movable:
         face = label == k
