@@ -175,3 +175,35 @@ def test_layout_declines_what_is_no_box():
     cam = fit_box_camera(mask, [2])
     assert cam.iou < MIN_FIT_IOU
     assert layout_from_mask(occ, mask, [0, 1]) is None
+
+
+def test_a_chest_of_ten_drawers_keeps_all_ten_past_the_flows_slots():
+    """The shipped model has 8 part slots (the base and 7 parts); a mask with 10 drawers
+    (ids 2-11, two columns of five) gets slots past the flow's, laid out from the mask:
+    stage 1 returns 11 slots, each drawer's cells where its mask puts it (its column and
+    row), and the assembled object has ten movable parts, the three the heads never read
+    typed by their shape (wide fronts: drawers)."""
+    from generator.pact.generate import PActGenerator
+
+    boxes = [((-0.25, -0.5, -0.6), (0.25, 0.5, 0.6), 1)]
+    rows = np.linspace(-0.58, 0.58, 6)
+    for i in range(10):
+        col, row = divmod(i, 5)
+        y0, y1 = (-0.48, -0.02) if col == 0 else (0.02, 0.48)
+        boxes.append(((0.25, y0, rows[row] + 0.01), (0.27, y1, rows[row + 1] - 0.01), i + 2))
+    mask = _raycast(boxes, azimuth_deg=30.0, elevation_deg=15.0)
+    shade = np.array([0, 150, *range(60, 260, 20)], np.uint8)  # a grey per id
+    image = np.repeat(np.where(mask > 0, shade[mask], 255)[..., None], 3, axis=2).astype(np.uint8)
+    gen = PActGenerator.default(device="cpu")
+    occ, _ = gen.stage1_parts(image, mask)
+    assert occ.shape[0] == 11 and all(occ[k].any() for k in range(1, 11))
+    z = [np.argwhere(occ[k])[:, 2].mean() for k in range(1, 11)]
+    y = [np.argwhere(occ[k])[:, 1].mean() for k in range(1, 11)]
+    for c in (0, 5):  # rows from the bottom up in each column; the columns side by side
+        assert all(a < b for a, b in zip(z[c : c + 4], z[c + 1 : c + 5], strict=True))
+    assert max(y[:5]) < min(y[5:])
+    obj = gen.assemble(gen.run(image, mask, occupancy=occ))
+    movable = [p for p in obj.parts if not p.is_base]
+    assert len(movable) == 10
+    extra = [p for p in movable if int(p.name.rsplit("_", 1)[1]) >= 8]
+    assert len(extra) == 3 and all(p.joint.type == "prismatic" for p in extra)

@@ -85,11 +85,11 @@ def test_square_inputs_pad_with_edge_colours_and_background_ids():
     image[:, 0] = 200  # left column
     image[:, 1] = 100  # right column
     mask = np.ones((4, 2), np.int64)
-    mask[0, 0] = 12  # past max_parts: background
+    mask[0, 0] = 12  # past max_parts: the base's id
     img, m, sq_image, sq_mask = square_inputs(image, mask, 4, max_parts=8)
     assert sq_image.shape == (4, 4, 3)
     assert (sq_image[:, 0] == 200).all() and (sq_image[:, 3] == 100).all()  # edge colours
-    assert sq_mask[:, 0].tolist() == [0, 0, 0, 0] and sq_mask[0, 1] == 0
+    assert sq_mask[:, 0].tolist() == [0, 0, 0, 0] and sq_mask[0, 1] == 1
     assert img.shape == (1, 3, 4, 4) and m.shape == (1, 4, 4)
     with pytest.raises(ValueError, match="does not match"):
         square_inputs(image, mask[:2], 4)

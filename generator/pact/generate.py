@@ -8,7 +8,9 @@ decode (fine SDF + RGB per token voxel) -> marching cubes per part, the topology
 the stage-1 occupancy (``slat_vae.constrain_sdf``: one closed piece per connected piece
 of the part's occupancy, no islands) -> ``part_cleaning.clean_mesh`` (the cleaning every
 generator's output gets) -> articulation head on the aggregated features (+ revolute
-origins projected onto the part's AABB surface) -> ``ArticulatedObject`` in the
+origins projected onto the part's AABB surface; ``articulation.apply_shape_prior``: no
+side-hinged door as wide as a drawer, no drawer as narrow as a wardrobe's door, off with
+``shape_prior=False``) -> ``ArticulatedObject`` in the
 normalized frame (``scale`` None; a ``height`` hint in metres
 sets ``scale`` = height / the object's z extent). ``assemble`` returns that raw output
 (what the benchmarks score); ``generate`` then fits the box layout
@@ -41,10 +43,13 @@ from generator.box_layout import fit_box_layout, robust_bounds
 from generator.part_cleaning import clean_mesh
 
 from .articulation import (
+    DOOR_HINGE,
     ArticulationHead,
     aggregate_last,
     apply_category_prior,
+    apply_shape_prior,
     decode_joint,
+    joint_from_shape,
     pool_parts,
     pool_slots,
     postprocess_joint,
@@ -121,9 +126,11 @@ class PActGenerator:
         stage1_head: ArticulationHead | None = None,
         box_layout: bool = True,
         clean_geometry: bool = True,
+        shape_prior: bool = True,
     ) -> None:
         self.device = torch.device(device)
         self.box_layout = box_layout
+        self.shape_prior = shape_prior
         self.clean_geometry = clean_geometry
         self.models = {k: m.to(self.device).eval() for k, m in models.items()}
         self.cfg = cfg
@@ -184,7 +191,9 @@ class PActGenerator:
     def stage1_parts(
         self, image: np.ndarray, mask: np.ndarray | None, alpha: np.ndarray | None = None
     ) -> tuple[np.ndarray, list[torch.Tensor]]:
-        """Stage 1: part occupancies (K, R, R, R) and its per-step last-block features."""
+        """Stage 1: part occupancies (K, R, R, R) and its per-step last-block features;
+        more than K (the flow's slots) when a part mask shows more parts
+        (``Stage1Generator``: laid out from the mask)."""
         if self.stage1 is None:
             raise PActWeightsError(
                 "stage-1 checkpoints (weights/small/ss_vae, weights/small/stage1) are missing; "
@@ -197,10 +206,9 @@ class PActGenerator:
             callback=lambda i, t, f: feats.append(f[0].float().cpu()),
             alphas=None if alpha is None else [alpha],
         )
-        occ = occ[0]  # (T, R, R, R), tidied (stage1.tidy_parts)
-        K = self.cfg.flow.max_parts
-        out = np.zeros((K, *occ.shape[1:]), bool)
-        out[: min(K, len(occ))] = occ[:K]
+        occ = occ[0]  # (T, R, R, R), tidied (stage1.tidy_parts); T > K: laid out from the mask
+        out = np.zeros((max(self.cfg.flow.max_parts, len(occ)), *occ.shape[1:]), bool)
+        out[: len(occ)] = occ
         return out, feats
 
     def run(
@@ -218,7 +226,8 @@ class PActGenerator:
         if occupancy is None:
             occupancy, feats1 = self.stage1_parts(image, mask, alpha)
             timings["stage1"] = time.perf_counter() - t
-        occupancy = np.asarray(occupancy, bool)[: self.cfg.flow.max_parts]
+        occupancy = np.asarray(occupancy, bool)
+        K = self.cfg.flow.max_parts  # stage 2 draws these slots; any past them: voxel boxes
         t = time.perf_counter()
         encoder = self.models["image_encoder"]
         img, m, _, _ = square_inputs(image, mask, encoder.cfg.image_size)
@@ -229,11 +238,11 @@ class PActGenerator:
             cond = encoder(img)  # (1, N_img, D_img)
         timings["encode"] = time.perf_counter() - t
         t = time.perf_counter()
-        coords, slot = voxels_from_occupancy(occupancy)
+        coords, slot = voxels_from_occupancy(occupancy[:K])
         meshes: dict[int, trimesh.Trimesh | None] = {}
         if len(coords) == 0:
             return PActRun(occupancy, {}, [], torch.zeros(1, 0), torch.zeros(1, 0), feats1, timings)
-        toks = tokenize(coords, slot, occupancy, self.cfg.flow)
+        toks = tokenize(coords, slot, occupancy[:K], self.cfg.flow)
         batch = collate([toks], max(len(toks.slot), self.cfg.flow.max_tokens)).to(self.device)
         feats2: list[torch.Tensor] = []
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
@@ -371,17 +380,25 @@ class PActGenerator:
             base.visual.vertex_colors = np.tile(DEFAULT_COLOR, (len(base.vertices), 1))
             meshes = {0: base}
         parts = [Part("base", "base", meshes[0])]
+        every = np.array([m.bounds for m in meshes.values()])
+        obj_lo, obj_hi = every[:, 0].min(0), every[:, 1].max(0)
         for k in sorted(meshes):
             if k == 0:
                 continue
-            pj = joints[k] if k < len(joints) else None
+            lo, hi = meshes[k].bounds
+            if k < len(joints):
+                pj = joints[k]
+            else:  # past the flow's slots (laid out from the mask): no head read it
+                pj = joint_from_shape(lo, hi, obj_lo, obj_hi)
             if pj is None:
                 parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
-            lo, hi = meshes[k].bounds
+            if self.shape_prior and hints.get("category") not in DOOR_HINGE:
+                # no side-hinged door that wide, no drawer that narrow (an appliance the
+                # user names: its category's rule below knows better)
+                pj = apply_shape_prior(pj, lo, hi, obj_lo, obj_hi)
             if hints.get("category"):  # the user's category: how its doors hinge
-                front = max(float(m.bounds[1][0]) for m in meshes.values())
-                pj = apply_category_prior(pj, str(hints["category"]), lo, hi, front)
+                pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
             pj = postprocess_joint(pj, lo, hi)
             if pj.type == "fixed":
                 joint = Joint("fixed", origin=pj.origin, axis=pj.axis)

@@ -37,14 +37,15 @@ def square_inputs(
     """uint8 (H, W, 3+) image and (H, W) part-id mask -> model inputs (1, 3, size, size)
     in [0, 1] and (1, size, size) int64 ids (or None), plus the squared uint8 image and
     mask. A non-square image is padded to a square with its edge colours, its mask with
-    background; mask ids past ``max_parts`` become background."""
+    background; mask ids past ``max_parts`` become the base's (1): the model cannot embed
+    them, and the silhouette stays whole."""
     image = np.asarray(image)[..., :3]
     if mask is not None:
         mask = np.asarray(mask).astype(np.int64)
         if mask.shape != image.shape[:2]:
             raise ValueError(f"mask {mask.shape} does not match image {image.shape[:2]}")
         if max_parts is not None:
-            mask = np.where(mask > max_parts, 0, mask)
+            mask = np.where(mask > max_parts, 1, mask)
     H, W = image.shape[:2]
     if H != W:
         S = max(H, W)

@@ -17,7 +17,9 @@ box rule (``estimate_joint``):
 Colours: a part's vertex colour is the mean image colour under that part's mask pixels
 (mask id = slot + 1), else ``DEFAULT_COLOR``.
 
-Mask ids above the model's ``max_parts`` cannot be embedded and are treated as background.
+Mask ids above the model's ``max_parts`` cannot be embedded: the flow sees them as the
+base. With the layout from the mask (below) they get slots of their own past the flow's,
+up to ``MAX_SLOTS`` in all (a chest of 12 drawers), laid out like the others.
 
 With a part mask, ``candidates`` samples of the flow (different noise, one batch) are
 drawn per image and one is kept: among the samples whose tidied parts
@@ -77,6 +79,9 @@ DEFAULT_COLOR = (180, 180, 180, 255)
 THIN = 0.5  # a panel's thin extent is at most this fraction of its other two
 DOOR_RANGE = np.pi / 2
 DRAWER_TRAVEL = 0.8  # of the drawer's depth
+#: Part slots (the base included) a part mask may fill: the flow's own slots, then more
+#: laid out from the mask alone (``mask_layout``), as the dataset's ``max_parts``.
+MAX_SLOTS = 16
 
 
 class Stage1Error(RuntimeError):
@@ -297,6 +302,17 @@ class Stage1Generator:
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
+        if masks is not None and self.mask_layout:
+            # parts past the model's slots (a chest of many drawers): slots of their own,
+            # laid out from the mask like the others (the flow drew them as the base)
+            top = min(max(int(np.max(mk)) for mk in masks) - 1, MAX_SLOTS - 1)
+            if top >= T:
+                grown = np.zeros((len(occ), top + 1, *occ.shape[2:]), bool)
+                grown[:, :T] = occ
+                occ, exists = grown, np.pad(exists, ((0, 0), (0, top + 1 - T)))
+                for b, mk in enumerate(masks):
+                    shown[b] += [int(i) - 1 for i in np.unique(mk) if T < int(i) <= top + 1]
+                T = top + 1
         boxed = np.zeros(len(occ), bool)  # laid out on a box (mask_layout): closed already
         for b, slots in enumerate(shown):
             laid = layout_from_mask(occ[b], masks[b], slots) if self.mask_layout else None
