@@ -446,10 +446,35 @@ def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
         assert np.allclose(after.origin, before[2]) and np.allclose(after.axis, before[3])
 
 
+def test_shape_prior_hinges_off_centre_doors_at_their_outer_edge():
+    """The two doors of a pair (each a quarter of the width off the middle), whatever side
+    the head hinged them at, hinge at their outer edges; a door in the middle keeps the
+    head's side."""
+    from generator.pact.articulation import apply_shape_prior
+
+    obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
+    left = (np.array([0.35, -0.48, -0.4]), np.array([0.4, -0.01, 0.4]))
+    right = (np.array([0.35, 0.01, -0.4]), np.array([0.4, 0.48, 0.4]))
+    j = apply_shape_prior(
+        _joint("revolute", "door", (0.4, -0.01, 0), (0, 0, 1)), *left, obj_lo, obj_hi
+    )
+    assert j.type == "revolute" and np.allclose(j.origin, (0.4, -0.48, 0.0))
+    j = apply_shape_prior(
+        _joint("revolute", "door", (0.4, 0.01, 0), (0, 0, -1)), *right, obj_lo, obj_hi
+    )
+    assert j.type == "revolute" and np.allclose(j.origin, (0.4, 0.48, 0.0))
+    middle = (np.array([0.35, -0.2, -0.4]), np.array([0.4, 0.25, 0.4]))
+    j = apply_shape_prior(
+        _joint("revolute", "door", (0.4, 0.25, 0), (0, 0, 1)), *middle, obj_lo, obj_hi
+    )
+    assert np.allclose(j.origin, (0.4, 0.25, 0.0))
+
+
 def test_joint_from_shape_for_parts_no_head_read():
-    """A part past the flow's slots: a front part 1.5x as wide as tall is a drawer; one
-    half as wide as tall a door hinged at its side edge nearer the object's side (+y
-    here); a part away from the front is fixed."""
+    """A part past the flow's slots: a front part 1.5x as wide as tall is a drawer; a
+    panel half as wide as tall a door hinged at its side edge nearer the object's side
+    (+y here), but a drawer when it is half the object deep; a part away from the front
+    is fixed."""
     from generator.pact.articulation import joint_from_shape
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
@@ -461,3 +486,6 @@ def test_joint_from_shape_for_parts_no_head_read():
     assert np.isclose(j.upper - j.lower, np.pi / 2)
     j = joint_from_shape(np.array([0.0, -0.3, 0.0]), np.array([0.2, 0.0, 0.2]), obj_lo, obj_hi)
     assert j.type == "fixed"
+    # as narrow, but half the object deep: a box that cannot swing on a front hinge slides
+    j = joint_from_shape(np.array([0.0, 0.2, -0.3]), np.array([0.4, 0.5, 0.3]), obj_lo, obj_hi)
+    assert j.type == "prismatic"
