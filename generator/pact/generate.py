@@ -9,8 +9,9 @@ the stage-1 occupancy (``slat_vae.constrain_sdf``: one closed piece per connecte
 of the part's occupancy, no islands) -> ``part_cleaning.clean_mesh`` (the cleaning every
 generator's output gets) -> articulation head on the aggregated features (+ revolute
 origins projected onto the part's AABB surface; ``articulation.apply_shape_prior``: no
-side-hinged door as wide as a drawer, no drawer as narrow as a wardrobe's door, off with
-``shape_prior=False``) -> ``ArticulatedObject`` in the
+side-hinged door as wide as a drawer, a door off the middle hinged at its outer edge, off
+with ``shape_prior=False``; slots past the flow's, laid out from the mask, are voxel boxes
+typed by ``articulation.joint_from_shape``) -> ``ArticulatedObject`` in the
 normalized frame (``scale`` None; a ``height`` hint in metres
 sets ``scale`` = height / the object's z extent). ``assemble`` returns that raw output
 (what the benchmarks score); ``generate`` then fits the box layout
@@ -380,8 +381,8 @@ class PActGenerator:
             base.visual.vertex_colors = np.tile(DEFAULT_COLOR, (len(base.vertices), 1))
             meshes = {0: base}
         parts = [Part("base", "base", meshes[0])]
-        every = np.array([m.bounds for m in meshes.values()])
-        obj_lo, obj_hi = every[:, 0].min(0), every[:, 1].max(0)
+        part_bounds = np.array([m.bounds for m in meshes.values()])
+        obj_lo, obj_hi = part_bounds[:, 0].min(0), part_bounds[:, 1].max(0)
         for k in sorted(meshes):
             if k == 0:
                 continue
@@ -394,8 +395,8 @@ class PActGenerator:
                 parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
             if self.shape_prior and hints.get("category") not in DOOR_HINGE:
-                # no side-hinged door that wide, no drawer that narrow (an appliance the
-                # user names: its category's rule below knows better)
+                # no side-hinged door as wide as a drawer, a door off the middle hinged at
+                # its outer edge (an appliance the user names: its category's rule knows)
                 pj = apply_shape_prior(pj, lo, hi, obj_lo, obj_hi)
             if hints.get("category"):  # the user's category: how its doors hinge
                 pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
