@@ -419,7 +419,8 @@ def test_category_prior_hinges_doors_as_the_category_does():
 
 def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     """Without a hint: a 'door' hinged about a vertical axis whose front is 3x as wide as
-    tall becomes a drawer sliding along +x by 0.6 of the object's depth. A wide door
+    tall becomes a drawer sliding along +x by 0.6 of the object's depth, or, 0.6 of the
+    object tall, a door hinged at its bottom edge. A wide door
     hinged at its bottom edge (an oven's), a lid, a part back from the front, a square
     door, and a tall narrow 'drawer' keep what the head predicted."""
     from generator.pact.articulation import apply_shape_prior
@@ -431,6 +432,14 @@ def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     )
     assert (j.type, j.semantic) == ("prismatic", "drawer")
     assert np.allclose(j.axis, (1, 0, 0)) and np.isclose(j.upper - j.lower, 0.6 * 0.8)
+    # as wide for its height but 0.6 of the object tall: an oven's door, hinged at the bottom
+    oven_lo, oven_hi = np.array([0.35, -0.65, -0.4]), np.array([0.4, 0.65, 0.2])  # 1.3 x 0.6
+    wide_obj = (np.array([-0.4, -0.7, -0.5]), np.array([0.4, 0.7, 0.5]))
+    j = apply_shape_prior(
+        _joint("revolute", "door", (0.4, -0.65, 0), (0, 0, 1)), oven_lo, oven_hi, *wide_obj
+    )
+    assert (j.type, j.semantic) == ("revolute", "door")
+    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.4, 0.0, -0.4))
     square_lo, square_hi = np.array([0.35, -0.3, -0.3]), np.array([0.4, 0.3, 0.3])
     tall_lo, tall_hi = np.array([0.35, 0.3, -0.5]), np.array([0.4, 0.5, 0.5])  # 0.2 x 1.0
     for joint, lo, hi in (

@@ -254,6 +254,10 @@ def postprocess_joint(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJ
 #: 0.24-1.73, procedural test split up to 1.76); drawers 1.30-4.16 on the real dev split,
 #: all but one above 2.0. Wide doors hinge at their bottom edge (ovens, 2.15-2.37).
 DOOR_MAX_ASPECT = 2.0
+#: ... unless it is this share of the object's height tall or taller: then it is a door
+#: hinged at its bottom edge (a real oven's, 0.65 of the height; the tallest real drawers
+#: that wide, a chest's two, 0.46; none on the procedural test split).
+FLAP_HEIGHT = 0.55
 #: A side-hinged door whose centre is this share of the object's width off its middle
 #: hinges at its edge nearer the object's side: so do 4 of 4 such doors on the real dev
 #: split and 10 of 10 on the procedural test split (pairs of doors, a door beside a column
@@ -272,10 +276,12 @@ def apply_shape_prior(
 
     A revolute part about a vertical axis that reaches the object's front (within a
     tenth of its size) and whose front is ``DOOR_MAX_ASPECT`` times as wide as it is tall
-    becomes a drawer sliding out along +x (``DRAWER_SLIDE`` of the object's depth): no
+    becomes a drawer sliding out along +x (``DRAWER_SLIDE`` of the object's depth), or,
+    if it is ``FLAP_HEIGHT`` of the object tall, a door hinged at its bottom edge: no
     side-hinged door is that wide (on real photos the head takes desks' and chests'
-    drawers, which the mask lays out as flat front panels, for doors). Everything else
-    is left as it is. (The converse, a 'drawer' much taller than wide made a door, cost
+    drawers, which the mask lays out as flat front panels, for doors). Such a door more
+    than ``OFF_CENTRE`` off the object's middle is hinged at its edge nearer the
+    object's side. Everything else is left as it is. (The converse, a 'drawer' much taller than wide made a door, cost
     on every metric of the procedural test split, whose drawers go down to half as wide
     as tall, and never applied on the real dev split's product photos.)"""
     size = hi - lo
@@ -285,6 +291,8 @@ def apply_shape_prior(
     aspect = float(size[1] / size[2])
     vertical = abs(float(np.asarray(joint.axis, dtype=float)[2])) > 0.7
     if joint.type == "revolute" and vertical and aspect >= DOOR_MAX_ASPECT:
+        if size[2] >= FLAP_HEIGHT * (obj_hi[2] - obj_lo[2]):  # an oven's door
+            return _bottom_door(joint, lo, hi)
         return _drawer(joint, lo, hi, obj_lo, obj_hi)
     offset = (0.5 * (lo[1] + hi[1]) - 0.5 * (obj_lo[1] + obj_hi[1])) / (obj_hi[1] - obj_lo[1])
     if joint.type == "revolute" and vertical and abs(offset) > OFF_CENTRE:
@@ -393,13 +401,21 @@ def apply_category_prior(
     if joint.type != "revolute":
         return joint
     origin = np.array(joint.origin, dtype=float)
-    if hinge == "vertical":
-        side = lo[1] if origin[1] < 0.5 * (lo[1] + hi[1]) else hi[1]
-        joint.axis = np.array([0.0, 0.0, 1.0])
-        joint.origin = np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
-    else:
-        joint.axis = np.array([0.0, 1.0, 0.0])
-        joint.origin = np.array([hi[0], 0.5 * (lo[1] + hi[1]), lo[2]])
+    if hinge == "bottom":
+        return _bottom_door(joint, lo, hi)
+    side = lo[1] if origin[1] < 0.5 * (lo[1] + hi[1]) else hi[1]
+    joint.axis = np.array([0.0, 0.0, 1.0])
+    joint.origin = np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
     joint.semantic = "door"
+    joint.lower, joint.upper = 0.0, max(float(joint.upper - joint.lower), 0.5 * np.pi)
+    return joint
+
+
+def _bottom_door(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJoint:
+    """``joint`` made a door hinged along y at its front bottom edge (an oven's), its range
+    kept, at least a quarter turn."""
+    joint.type, joint.semantic = "revolute", "door"
+    joint.axis = np.array([0.0, 1.0, 0.0])
+    joint.origin = np.array([hi[0], 0.5 * (lo[1] + hi[1]), lo[2]])
     joint.lower, joint.upper = 0.0, max(float(joint.upper - joint.lower), 0.5 * np.pi)
     return joint
