@@ -293,9 +293,8 @@ def apply_shape_prior(
     wider than tall on a low box (``APPLIANCE_DOOR_*``) is hinged at its bottom edge (an
     oven's, a dishwasher's). Another door more than ``OFF_CENTRE`` off the object's
     middle is hinged at its edge nearer the object's side. Everything else is left as
-    it is. (The converse, a 'drawer' much taller than wide made a door, cost
-    on every metric of the procedural test split, whose drawers go down to half as wide
-    as tall, and never applied on the real dev split's product photos.)"""
+    it is (a 'drawer' taller than wide too: the procedural test split's drawers go down
+    to half as wide as tall)."""
     size = hi - lo
     front = hi[0] >= obj_hi[0] - 0.1
     if joint.type == "fixed" or joint.semantic == "lid" or not front or size[2] <= 0:
@@ -319,7 +318,7 @@ def apply_shape_prior(
     if joint.type == "revolute" and vertical and abs(offset) > OFF_CENTRE:
         # a door off the middle (one of a pair, a door beside a column of drawers) hinges
         # at its edge nearer the object's side
-        joint.origin = np.array([hi[0], lo[1] if offset < 0 else hi[1], 0.5 * (lo[2] + hi[2])])
+        joint.origin = _side_hinge(lo, hi, lo[1] if offset < 0 else hi[1])
     return joint
 
 
@@ -380,9 +379,15 @@ def _side_door(
     side = lo[1] if 0.5 * (lo[1] + hi[1]) < centre else hi[1]
     joint.type, joint.semantic = "revolute", "door"
     joint.axis = np.array([0.0, 0.0, 1.0])
-    joint.origin = np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
+    joint.origin = _side_hinge(lo, hi, side)
     joint.lower, joint.upper = 0.0, 0.5 * np.pi
     return joint
+
+
+def _side_hinge(lo: np.ndarray, hi: np.ndarray, side: float) -> np.ndarray:
+    """The origin of a vertical hinge on the front face of a part with bounds ``lo``..``hi``,
+    at its side edge ``side`` (y), half-way up."""
+    return np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
 
 
 #: How doors of a category hinge, when the user names the category (a hint): the head
@@ -424,9 +429,8 @@ def apply_category_prior(
     origin = np.array(joint.origin, dtype=float)
     if hinge == "bottom":
         return _bottom_door(joint, lo, hi)
-    side = lo[1] if origin[1] < 0.5 * (lo[1] + hi[1]) else hi[1]
     joint.axis = np.array([0.0, 0.0, 1.0])
-    joint.origin = np.array([hi[0], side, 0.5 * (lo[2] + hi[2])])
+    joint.origin = _side_hinge(lo, hi, lo[1] if origin[1] < 0.5 * (lo[1] + hi[1]) else hi[1])
     joint.semantic = "door"
     joint.lower, joint.upper = 0.0, max(float(joint.upper - joint.lower), 0.5 * np.pi)
     return joint
