@@ -180,6 +180,23 @@ def test_flow_resume_is_bit_exact(tiny, trained_vae, tmp_path):
     assert any(r.get("flow_val/mse") for r in rows)
 
 
+def test_flow_snapshots_keep_the_weights_of_their_step(tiny, trained_vae, tmp_path):
+    """--snapshot-every: the weights at every K-th step, beside the rolling checkpoint."""
+    data, cfg = tiny
+    kw = dict(FAST, vae_dir=str(trained_vae / "vae/checkpoint/ss_vae"), snapshot_every=3)
+    three = train_stage1(data, tmp_path / "a", str(cfg), "flow", steps=4, stop_after=3, **kw)
+    four = train_stage1(data, tmp_path / "b", str(cfg), "flow", steps=4, **kw)
+    snaps = sorted(p.name for p in (tmp_path / "b/flow/snapshots").iterdir())
+    assert snaps == ["step_000003", "step_000004"]  # every 3rd step and the last
+    models, _, _ = load_stage1(tmp_path / "b/flow/snapshots/step_000004/stage1")
+    _assert_same(_weights(models), _weights(four.models))
+    at3, _, _ = load_stage1(tmp_path / "b/flow/snapshots/step_000003/stage1")
+    _assert_same(_weights(at3), _weights(three.models))  # the same schedule stopped at 3
+    meta = json.loads((tmp_path / "b/flow/snapshots/step_000003/stage1/config.json").read_text())
+    assert meta["extra"]["step"] == 3
+    assert meta["extra"]["samples_seen"] == 3 * TINY["flow_train"]["batch_size"]
+
+
 def test_flow_init_from_starts_at_the_given_weights_and_statistics(tiny, trained_vae, tmp_path):
     data, cfg = tiny
     vae_dir = str(trained_vae / "vae/checkpoint/ss_vae")

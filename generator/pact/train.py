@@ -91,6 +91,7 @@ class Args:
     log_every: int = 10  # steps between log rows
     eval_every: int = 250  # steps between validations
     ckpt_every: int = 200  # steps between checkpoints
+    snapshot_every: int | None = None  # flow: also keep flow/snapshots/step_<k>/stage1 (curves)
     seed: int = 0  # every random draw is keyed by (seed, step, rank)
     resume: bool = True  # continue from the run's last checkpoint when there is one
     threads: int | None = None  # torch intra-op threads per rank (None: torch's default)
@@ -615,6 +616,19 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
             )
         barrier(d)
 
+    def snapshot() -> None:
+        """The weights at this step, kept beside the rolling checkpoint (a training curve
+        scores them: bench/training_curve.py); written under a temporary name."""
+        if not d.main:
+            return
+        folder = part_dir / "snapshots" / f"step_{step:06d}"
+        tmp = folder.with_name(folder.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)
+        extra = {"step": step, "samples_seen": step * B * d.world, "vae": str(vae_dir)}
+        save_stage1(models, cfg, tmp / "stage1", stats, extra=extra)
+        shutil.rmtree(folder, ignore_errors=True)
+        tmp.replace(folder)
+
     augment = AugmentConfig(
         recolor=args.aug_recolor,
         photometric=args.aug_photometric,
@@ -679,6 +693,8 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
         stop = _should_stop(t0, step, args, d)
         if step % args.ckpt_every == 0 or step == total or stop:
             checkpoint()
+        if args.snapshot_every and (step % args.snapshot_every == 0 or step == total):
+            snapshot()
         if stop:
             log.info("stopping at step %d (max_minutes / stop_after)", step)
             break
