@@ -80,7 +80,12 @@ def main() -> None:
         sys.exit(f"{args.run}: no snapshots (train with --snapshot-every K)")
     curve: list[dict[str, Any]] = []
     for samples, stage1 in points:
-        name = f"{args.run.name}_{args.split}_samples_{samples:08d}"
+        scope = (
+            args.split
+            + ("_" + "_".join(args.styles) if args.split == "real" else "")
+            + (f"_first{args.limit}" if args.limit else "")
+        )
+        name = f"{args.run.name}_{scope}_samples_{samples:08d}"
         scored = args.work / f"{name}.json"
         if scored.is_file():
             curve.append(json.loads(scored.read_text()))
