@@ -6,7 +6,7 @@ real dev split (or the test split). Prints JSON, then a table.
 
 ``RUN`` is a ``generator.pact.train`` run folder trained with ``--snapshot-every K``: every
 ``RUN/flow/snapshots/step_<k>/stage1`` is scored. Each snapshot becomes a weights folder
-``WORK/<run name>_step_<k>/`` laid out as generator/pact/weights/small: the shipped
+``WORK/<run name>_<split>[_<styles>][_first<N>]_samples_<n>/`` laid out as generator/pact/weights/small: the shipped
 networks (``--base``) with the snapshot's stage 1 in place of the shipped one, and is
 run through ``bench/gen_quality.py``'s chain (``PActGenerator.load``, the mask given,
 the paper's metrics). ``--init`` (the stage-1 folder the run started from) adds the point
@@ -39,7 +39,7 @@ def snapshots(run: Path) -> list[tuple[int, Path]]:
     """(samples seen, stage-1 folder) of every finished snapshot of ``run``, in order."""
     out = []
     for folder in sorted((run / "flow" / "snapshots").glob("step_*")):
-        if folder.name.endswith(".tmp") or not (folder / "stage1" / "config.json").is_file():
+        if not (folder / "stage1" / "config.json").is_file():  # being written
             continue
         meta = json.loads((folder / "stage1" / "config.json").read_text())
         out.append((int(meta["extra"]["samples_seen"]), folder / "stage1"))
@@ -78,13 +78,13 @@ def main() -> None:
     points = ([(0, args.init)] if args.init is not None else []) + snapshots(args.run)
     if not points:
         sys.exit(f"{args.run}: no snapshots (train with --snapshot-every K)")
+    scope = (  # what a scored point was measured on: part of its name
+        args.split
+        + ("_" + "_".join(args.styles) if args.split == "real" else "")
+        + (f"_first{args.limit}" if args.limit else "")
+    )
     curve: list[dict[str, Any]] = []
     for samples, stage1 in points:
-        scope = (
-            args.split
-            + ("_" + "_".join(args.styles) if args.split == "real" else "")
-            + (f"_first{args.limit}" if args.limit else "")
-        )
         name = f"{args.run.name}_{scope}_samples_{samples:08d}"
         scored = args.work / f"{name}.json"
         if scored.is_file():

@@ -618,16 +618,12 @@ def train_flow(args: Args, cfg: Stage1Config, d: Dist) -> tuple[Path, dict[str, 
 
     def snapshot() -> None:
         """The weights at this step, kept beside the rolling checkpoint (a training curve
-        scores them: bench/training_curve.py); written under a temporary name."""
-        if not d.main:
-            return
-        folder = part_dir / "snapshots" / f"step_{step:06d}"
-        tmp = folder.with_name(folder.name + ".tmp")
-        shutil.rmtree(tmp, ignore_errors=True)
-        extra = {"step": step, "samples_seen": step * B * d.world, "vae": str(vae_dir)}
-        save_stage1(models, cfg, tmp / "stage1", stats, extra=extra)
-        shutil.rmtree(folder, ignore_errors=True)
-        tmp.replace(folder)
+        scores them: bench/training_curve.py); save_stage1 writes under a temporary name."""
+        if d.main:
+            extra = {"step": step, "samples_seen": step * B * d.world, "vae": str(vae_dir)}
+            save_stage1(
+                models, cfg, part_dir / f"snapshots/step_{step:06d}/stage1", stats, extra=extra
+            )
 
     augment = AugmentConfig(
         recolor=args.aug_recolor,
