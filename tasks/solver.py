@@ -35,6 +35,11 @@ opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.plac
    that stalls already past the goal fraction is held there (a lid let go falls shut).
 
 Knobs are pinched sideways (a vertical pinch catches a worktop overhanging a drawer).
+A grasp stopped short of the handle is tried again with the fingers closing along the
+bar; a pull that does not move the part at all (the fingers, opened wide, stopped on a
+worktop's lip just above the pull and never held it) is tried again once with the
+fingers opened just past the bar, the hand pitched 20 degrees toward the part's nearer
+edge (coming from below under a worktop).
 A door's handle moves at most ``handle_speed`` per step (a wide fridge door's grasp
 slips when swung at the revolute speed). Every action is checked against the arm
 controller's own inverse kinematics (CPU: Pinocchio CLIK, 100 iterations from the
@@ -101,6 +106,8 @@ class SolverConfig:
     recess_depth: float = -0.0045  # tcp past a recessed pull's point (the bridge's middle):
     # 4.5 mm short of it, so the 18.5 mm fingertips clear the bottom of a 10 mm pocket
     recess_open: float = -0.08  # gripper action: fingers 13 mm from the centre (bridge 12 mm)
+    narrow_open: float = 0.04  # gripper action: fingers 16 mm from the centre (a bar's regrasp)
+    narrow_pitch_deg: float = 20.0  # that regrasp comes in pitched toward the nearer edge
     none_depth: float = 0.008  # how far past an unmodelled handle point the closed fingers go
     recess_press: float = 0.04  # m the pulling goal is set into the pocket's side wall
     release_fraction: float = 0.08  # a bottom-hinged door this far open falls open if let go
@@ -123,6 +130,8 @@ class SolverConfig:
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
     pinch_retry: bool = True  # a grasp stopped short of the handle: again along the bar
     approach_blocked: float = 0.02  # m short of the grasp point that counts as stopped
+    pull_moved: float = 0.01  # open fraction a pull must move the part by to count as held
+    regrasp_steps: int = 150  # steps a second grasp (fingers along the bar) needs
     trace: bool = False  # record per-step diagnostics in SolveResult.trace
 
 
@@ -611,6 +620,7 @@ class ScriptedSolver:
         depth = cfg.recess_depth if bridged else (cfg.none_depth if bare else cfg.grasp_depth)
 
         across = False  # the second try of a blocked approach: fingers along the bar
+        narrow = False  # the second try of a pull that did not move the part
 
         def pinch_axis(L: np.ndarray, approach: np.ndarray) -> np.ndarray:
             """The axis the fingers close across (world frame)."""
@@ -629,109 +639,146 @@ class ScriptedSolver:
             L = self._link()
             approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
             center = L[:3, :3] @ handle_link + L[:3, 3]
-            T = grasp_frame(approach, pinch_axis(L, approach), center, self._tcp()[:3, 1])
+            bar = pinch_axis(L, approach)
+            if narrow:  # from the side away from the part's nearer edge, pitched about the bar
+                closing = np.cross(approach, bar)
+                closing /= max(np.linalg.norm(closing), 1e-9)
+                closing_l = L[:3, :3].T @ closing
+                above = self._part_extent(closing_l) - handle_link @ closing_l
+                below = self._part_extent(-closing_l) + handle_link @ closing_l
+                toward = closing if above < below else -closing
+                pitch = np.deg2rad(cfg.narrow_pitch_deg)
+                approach = np.cos(pitch) * approach + np.sin(pitch) * toward
+            T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
 
-        # 1-2. pre-grasp then approach
-        stages = [("pregrasp", cfg.pregrasp_distance, 0.015, 80)]
-        if recessed:  # line the fingertips up with the pocket before going in
-            stages.append(("align", 0.02, 0.003, 30))
-        stages.append(("approach", -depth, 0.006, 40))
-        for attempt in range(2 if cfg.pinch_retry and not recessed else 1):
-            for name, offset, tol, budget in stages:
-                phase = self._phase = name if attempt == 0 else f"{name}:across"
-                goal = grasp_goal(offset)
-                for _ in range(budget):
-                    dp, dr = self._errors(goal)
-                    if dp < tol and dr < 0.05:
-                        break
-                    do(self._action(goal, g_reach))
+        start = frac()
+        for grip_try in range(2):
+            # 1-2. pre-grasp then approach
+            stages = [("pregrasp", cfg.pregrasp_distance, 0.015, 80)]
+            if recessed or narrow:  # line the fingertips up with the pocket (the bar)
+                stages.append(("align", 0.02, 0.003, 30))
+            stages.append(("approach", -depth, 0.006, 40))
+            for _ in range(1 if across or narrow or recessed or not cfg.pinch_retry else 2):
+                for name, offset, tol, budget in stages:
+                    style = ":across" if across else (":narrow" if narrow else "")
+                    phase = self._phase = name + style
                     goal = grasp_goal(offset)
-            # 3. grasp (without a modelled handle: lean on the face toward the free edge)
-            phase = self._phase = "grasp"
-            goal = grasp_goal(-depth)
-            for _ in range(10):
-                do(self._action(goal, g_hold))
-            short = self._errors(goal)[0]
-            if bare or short < cfg.approach_blocked:
-                break
-            # the fingers met something short of the handle (a worktop overhanging a
-            # drawer's short pull, the drawer above): back off and come in again with
-            # them closing along the bar (a pull shorter than the 8 cm opening). Fingers
-            # that stop wide on the handle are no sign: they often slide onto the bar
-            # once the pull starts.
-            log.debug("grasp blocked %.3f m short; pinching along the bar", short)
-            across = True
-        tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
-        if bare:
-            # lean across the face (tcp x); for a door, toward its free edge
-            press = np.eye(4)
-            press[0, 3] = cfg.recess_press
-            if part.joint_type == "revolute":
-                _, radial_l, _, _ = hinge_frame_link(part)
-                if tcp_in_link[:3, 0] @ radial_l < 0:
-                    press[0, 3] = -cfg.recess_press
-            tcp_in_link = tcp_in_link @ press
-        # the axis the hand may turn about while holding: the bar the fingers pinch across
-        # (a knob pinched sideways: the vertical; a bare face: none)
-        sideways_knob = knob and abs((self._link()[:3, :3] @ normal_link)[2]) < 0.7
-        # 4. move along the joint
-        target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
-        target = float(np.clip(target, 0.02, 0.98))
-        sign = -1.0 if closing else 1.0
-        speed = cfg.prismatic_speed
-        if part.joint_type == "revolute":  # the handle no faster than a drawer's
-            speed = min(cfg.revolute_speed, cfg.handle_speed / max(hinge_frame_link(part)[3], 0.05))
-        axis_obj = _np(u.joint_axis_world())[0].astype(float)
-        # a door whose handle the arm cannot follow all the way but can push on from
-        # part of the way (a wide fridge door): pull only that far, then push
-        switch, tilt = None, 0.0
-        pushable = not closing and part.joint_type == "revolute"
-        if pushable:
-            face_depth = self._inner_face_depth(hinge_frame_link(part)[2])
-            switch, tilt = self._plan_push(part, frac(), face_depth)
-        pull_to = target if switch is None else min(target, switch)
-        phase = self._phase = "move"
-        history: list[float] = []
-        follow_rotation = True
-        last_tcp = self._tcp()
-        while step < cfg.max_steps - cfg.hold_steps:
-            f = frac()
-            if (f <= target) if closing else (f >= pull_to):
-                break
-            history.append(f)
-            tcp = self._tcp()
-            stuck = self._ik_failed if cfg.ik_check else self._frozen(last_tcp, tcp)
-            if follow_rotation and len(history) > 2 and stuck:
-                # the controller's IK found no solution for the turning grasp (it then
-                # holds its last target): keep the hand's orientation and only pull along
-                # the path; the grasp pivots about the pads' normal or the bar
-                follow_rotation = False
-                history = [f]
-                self._phase = "move:translate"
-                log.debug("IK stuck at fraction %.3f; translating only", f)
-            last_tcp = tcp
-            if len(history) > cfg.stall_steps and abs(f - history[-cfg.stall_steps - 1]) < 0.005:
-                break  # stalled (reach or joint limit, lost grip): settle and let success decide
-            L = self._link()
-            self._grip_axis = (
-                None
-                if bare
-                else (
-                    pinch_axis(L, -(L[:3, :3] @ normal_link))
-                    if across
+                    for _ in range(budget):
+                        dp, dr = self._errors(goal)
+                        if dp < tol and dr < 0.05:
+                            break
+                        do(self._action(goal, cfg.narrow_open if narrow else g_reach))
+                        goal = grasp_goal(offset)
+                # 3. grasp (without a modelled handle: lean on the face toward the free edge)
+                phase = self._phase = "grasp"
+                goal = grasp_goal(-depth)
+                for _ in range(10):
+                    do(self._action(goal, g_hold))
+                short = self._errors(goal)[0]
+                if bare or short < cfg.approach_blocked:
+                    break
+                # the fingers met something short of the handle (a worktop overhanging a
+                # drawer's short pull, the drawer above): back off and come in again with
+                # them closing along the bar (a pull shorter than the 8 cm opening). Fingers
+                # that stop wide on the handle are no sign: they often slide onto the bar
+                # once the pull starts.
+                log.debug("grasp blocked %.3f m short; pinching along the bar", short)
+                across = True
+            tcp_in_link = np.linalg.inv(self._link()) @ self._tcp()
+            if bare:
+                # lean across the face (tcp x); for a door, toward its free edge
+                press = np.eye(4)
+                press[0, 3] = cfg.recess_press
+                if part.joint_type == "revolute":
+                    _, radial_l, _, _ = hinge_frame_link(part)
+                    if tcp_in_link[:3, 0] @ radial_l < 0:
+                        press[0, 3] = -cfg.recess_press
+                tcp_in_link = tcp_in_link @ press
+            # the axis the hand may turn about while holding: the bar the fingers pinch across
+            # (a knob pinched sideways: the vertical; a bare face: none)
+            sideways_knob = knob and abs((self._link()[:3, :3] @ normal_link)[2]) < 0.7
+            # 4. move along the joint
+            target = (u.close_goal - cfg.overshoot) if closing else (u.open_goal + cfg.overshoot)
+            target = float(np.clip(target, 0.02, 0.98))
+            sign = -1.0 if closing else 1.0
+            speed = cfg.prismatic_speed
+            if part.joint_type == "revolute":  # the handle no faster than a drawer's
+                speed = min(
+                    cfg.revolute_speed, cfg.handle_speed / max(hinge_frame_link(part)[3], 0.05)
+                )
+            axis_obj = _np(u.joint_axis_world())[0].astype(float)
+            # a door whose handle the arm cannot follow all the way but can push on from
+            # part of the way (a wide fridge door): pull only that far, then push
+            switch, tilt = None, 0.0
+            pushable = not closing and part.joint_type == "revolute"
+            if pushable:
+                face_depth = self._inner_face_depth(hinge_frame_link(part)[2])
+                switch, tilt = self._plan_push(part, frac(), face_depth)
+            pull_to = target if switch is None else min(target, switch)
+            phase = self._phase = "move"
+            history: list[float] = []
+            follow_rotation = True
+            last_tcp = self._tcp()
+            while step < cfg.max_steps - cfg.hold_steps:
+                f = frac()
+                if (f <= target) if closing else (f >= pull_to):
+                    break
+                history.append(f)
+                tcp = self._tcp()
+                stuck = self._ik_failed if cfg.ik_check else self._frozen(last_tcp, tcp)
+                if follow_rotation and len(history) > 2 and stuck:
+                    # the controller's IK found no solution for the turning grasp (it then
+                    # holds its last target): keep the hand's orientation and only pull along
+                    # the path; the grasp pivots about the pads' normal or the bar
+                    follow_rotation = False
+                    history = [f]
+                    self._phase = "move:translate"
+                    log.debug("IK stuck at fraction %.3f; translating only", f)
+                last_tcp = tcp
+                if (
+                    len(history) > cfg.stall_steps
+                    and abs(f - history[-cfg.stall_steps - 1]) < 0.005
+                ):
+                    break  # stalled (reach or joint limit, lost grip): settle and let success decide
+                L = self._link()
+                self._grip_axis = (
+                    None
+                    if bare
                     else (
-                        np.array([0.0, 0.0, 1.0]) if sideways_knob else L[:3, :3] @ handle_axis_link
+                        pinch_axis(L, -(L[:3, :3] @ normal_link))
+                        if across
+                        else (
+                            np.array([0.0, 0.0, 1.0])
+                            if sideways_knob
+                            else L[:3, :3] @ handle_axis_link
+                        )
                     )
                 )
-            )
-            remaining = abs(target - f) * part.range
-            dq = sign * min(speed, remaining + 0.01)
-            goal = joint_motion(part.joint_type, axis_obj, L[:3, 3], dq) @ L @ tcp_in_link
-            if not follow_rotation:
-                goal[:3, :3] = tcp[:3, :3]
-            do(self._action(goal, g_hold))
+                remaining = abs(target - f) * part.range
+                dq = sign * min(speed, remaining + 0.01)
+                goal = joint_motion(part.joint_type, axis_obj, L[:3, 3], dq) @ L @ tcp_in_link
+                if not follow_rotation:
+                    goal[:3, :3] = tcp[:3, :3]
+                do(self._action(goal, g_hold))
+            # the pull did not move the part at all: the fingers never held the handle
+            # (opened wide across the bar, one of them met a worktop overhanging the
+            # drawer, less than ``approach_blocked`` short of the bar): back off and come
+            # in again with the fingers opened just past the bar
+            moved = abs(frac() - start)
+            if (
+                grip_try > 0
+                or recessed
+                or not cfg.pinch_retry
+                or moved >= cfg.pull_moved
+                or steps_left() < cfg.regrasp_steps
+            ):
+                break
+            log.debug("the pull did not move the part (%.3f); a narrow pinch", moved)
+            phase = self._phase = "regrasp"
+            self._go(lambda: grasp_goal(cfg.pregrasp_distance), GRIPPER_OPEN, do, budget=30)
+            narrow, across = True, False
         # 4b. not there yet: a door hanging from a bottom hinge, once ajar, falls open
         # under its own weight when let go; any other door or lid is pushed open from
         # inside (the gripper goes round its free edge and presses on its inner face)

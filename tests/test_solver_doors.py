@@ -179,9 +179,14 @@ def test_twist_escape_pulls_through_a_wrist_singularity(singular_fridge) -> None
     assert not any(p.startswith("push") for p in phases), sorted(phases)
 
 
-def _drawer_under_a_worktop(root) -> object:
+def _drawer_under_a_worktop(root, long_pull: bool = False) -> object:
     """A desk whose top drawer has a 5 cm pull 3 cm under a worktop that overhangs the
-    drawer front by 3 cm: a vertical pinch meets the overhang, one along the pull fits."""
+    drawer front by 3 cm: a vertical pinch meets the overhang, one along the pull fits.
+
+    ``long_pull``: the pull is 11 cm long, held by posts at its ends (fingers along it
+    meet the posts), and the worktop is 2 cm thick with a 1 cm lip along its front edge
+    3 cm above the pull's axis, 3.5 cm in front of it: a wide vertical pinch stops on
+    the lip less than ``approach_blocked`` short of the pull and never holds it."""
     import trimesh
 
     from asset_pipeline.build import build_asset
@@ -201,15 +206,20 @@ def _drawer_under_a_worktop(root) -> object:
         box((-0.25, -0.32, 0.7), (0.28, 0.32, 0.73)),  # worktop, 3 cm over the front
     ]
     pull = np.array([0.27, 0.0, 0.67])
+    length, post = 0.05, (0.012, 0.02)  # the pull's length, its posts' span from the middle
+    if long_pull:
+        base[-1] = box((-0.25, -0.32, 0.71), (0.305, 0.32, 0.73))  # worktop, 5.5 cm over
+        base.append(box((0.295, -0.32, 0.70), (0.305, 0.32, 0.71)))  # its lip
+        length, post = 0.11, (0.047, 0.055)
     drawer = [
         box((0.23, -0.275, 0.505), (0.25, 0.275, 0.695)),  # front
         box((-0.2, -0.26, 0.51), (0.23, 0.26, 0.525)),  # bottom
         box((-0.2, -0.26, 0.525), (-0.185, 0.26, 0.67)),  # back
         box((-0.185, -0.26, 0.525), (0.23, -0.245, 0.67)),  # sides
         box((-0.185, 0.245, 0.525), (0.23, 0.26, 0.67)),
-        cylinder(pull, 0.006, 0.05, 1),  # the pull and its posts
-        box((0.249, -0.02, 0.664), (0.265, -0.012, 0.676)),
-        box((0.249, 0.012, 0.664), (0.265, 0.02, 0.676)),
+        cylinder(pull, 0.006, length, 1),  # the pull and its posts
+        box((0.249, -post[1], 0.664), (0.265, -post[0], 0.676)),
+        box((0.249, post[0], 0.664), (0.265, post[1], 0.676)),
     ]
     obj = ArticulatedObject(
         [
@@ -225,7 +235,7 @@ def _drawer_under_a_worktop(root) -> object:
         category="desk",
         scale=1.0,
     )
-    build_asset(save_bundle(obj, root / "desk_worktop"))
+    build_asset(save_bundle(obj, root / ("desk_lip" if long_pull else "desk_worktop")))
     return next(iter(FolderSource(root)))
 
 
@@ -240,3 +250,24 @@ def test_a_pull_under_a_worktop_is_pinched_along_its_length(tmp_path) -> None:
     assert any(t["phase"].endswith(":across") for t in trace)
     res, _ = _solve_door(record, "drawer_0", pinch_retry=False)
     assert not res.success
+
+
+@pytest.mark.slow
+def test_a_pull_the_wide_pinch_cannot_hold_is_pinched_again_narrow(tmp_path) -> None:
+    """Under a worktop's lip the fingers opened wide across the pull stop on the lip
+    and the pull does not move the drawer; the solver backs off and comes in again with
+    the fingers opened just past the pull, pitched up under the lip, and the drawer
+    opens. Without that second grasp it stays shut."""
+    record = _drawer_under_a_worktop(tmp_path, long_pull=True)
+    res, trace = _solve_door(record, "drawer_0")
+    assert res.success, res.reason
+    assert any(t["phase"] == "regrasp" for t in trace)
+    assert trace[-1]["phase"] == "hold"
+    pulled = [t for t in trace if t["phase"].startswith("move")]
+    assert any(t["phase"] == "approach:narrow" for t in trace)
+    # the drawer moved only on the narrow grasp, after the regrasp
+    regrasp = min(t["step"] for t in trace if t["phase"] == "regrasp")
+    assert max(t["fraction"] for t in pulled if t["step"] < regrasp) < 0.01
+    res, trace = _solve_door(record, "drawer_0", pinch_retry=False)
+    assert not res.success
+    assert res.final_fraction < 0.01
