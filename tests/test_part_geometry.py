@@ -362,3 +362,44 @@ def test_visuals_are_cut_where_they_reach_into_a_neighbour():
         assert m.is_watertight and len(m.split(only_watertight=False)) == 1
         assert np.all(m.visual.vertex_colors[:, :3] == [200, 120, 40])
     assert cut(door) is door.mesh
+
+
+def test_a_drawer_drawn_as_its_front_gets_the_body_of_its_collision_box() -> None:
+    """A drawer whose visual is a 3 cm front on a collision box 40 cm deep gets an
+    open-top tray behind the front, inside that box: its visual now reaches the box's
+    back, keeps the front's colour, and a drawer whose visual is already deep, or one
+    sliding along -y, is handled alike (the latter: along y)."""
+    import trimesh as tm
+
+    from generator.pact.generate import DRAWER_WALL, drawer_body
+
+    def box(lo, hi):
+        m = tm.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        m.visual.vertex_colors = np.tile([200, 120, 40, 255], (len(m.vertices), 1))
+        return m
+
+    collision = np.array([[-0.1, -0.3, 0.0], [0.3, 0.3, 0.2]])
+    front = box((0.27, -0.3, 0.0), (0.3, 0.3, 0.2))
+    body = drawer_body(front, collision, np.array([1.0, 0.0, 0.0]))
+    assert body is not None
+    lo, hi = body.bounds
+    assert lo == pytest.approx([-0.1, -0.3, 0.0]) and hi[0] == pytest.approx(0.27 + DRAWER_WALL)
+    assert hi[1:] == pytest.approx([0.3, 0.2])
+    # open at the top: a point in the middle of the tray, above its floor, is not inside
+    assert not body.contains([[0.1, 0.0, 0.1]])[0]
+    assert body.contains([[0.1, 0.0, DRAWER_WALL / 2]])[0]  # the floor
+    assert body.contains([[-0.1 + DRAWER_WALL / 2, 0.0, 0.1]])[0]  # the back wall
+    assert np.all(body.visual.vertex_colors[:, :3] == [200, 120, 40])
+    # already as deep as its box: nothing added
+    assert (
+        drawer_body(box((-0.05, -0.3, 0.0), (0.3, 0.3, 0.2)), collision, np.array([1.0, 0, 0]))
+        is None
+    )
+    # a drawer sliding out along -y: the tray runs along +y behind its front
+    side = np.array([[-0.3, -0.3, 0.0], [0.3, 0.1, 0.2]])
+    body = drawer_body(box((-0.3, -0.3, 0.0), (0.3, -0.27, 0.2)), side, np.array([0.0, -1.0, 0.0]))
+    assert body is not None
+    lo, hi = body.bounds
+    assert hi[1] == pytest.approx(0.1) and lo[1] == pytest.approx(-0.27 - DRAWER_WALL)
+    assert lo[0] == pytest.approx(-0.3) and hi[0] == pytest.approx(0.3)

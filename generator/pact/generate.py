@@ -485,6 +485,10 @@ def with_visuals(
             if p.name in boxes:
                 others = [b for name, b in boxes.items() if name != p.name]
                 mesh = clip_from_neighbours(c.mesh, boxes[p.name], others)
+            if p.joint is not None and p.joint.type == "prismatic" and p.primitives:
+                body = drawer_body(mesh, _primitive_box(p), np.asarray(p.joint.axis, float))
+                if body is not None:
+                    mesh = trimesh.util.concatenate([mesh, body])
             n = len(r.mesh.faces)
             if len(p.mesh.faces) > n:  # the layout's bar handle
                 bar = p.mesh.submesh([np.arange(n, len(p.mesh.faces))], append=True)
@@ -493,6 +497,68 @@ def with_visuals(
     out = ArticulatedObject(parts, laid.category, laid.scale, dict(laid.provenance))
     _floor_base_boxes(out)
     return out
+
+
+#: A drawer's visual reaching less than this share of its collision box's depth back
+#: gets the rest of its body (:func:`drawer_body`).
+DRAWER_BODY_SHARE = 0.75
+#: Wall thickness of that body, in generator units (the unit cube's side: ~1/64).
+DRAWER_WALL = 0.016
+
+
+def drawer_body(mesh: trimesh.Trimesh, box: np.ndarray, axis: np.ndarray) -> trimesh.Trimesh | None:
+    """The body behind a drawer's visual ``mesh`` that its collision box (2, 3) has and
+    the mesh lacks: an open-top tray (floor, two side walls, back wall, ``DRAWER_WALL``
+    thick) from the box's back up to the mesh's back, coloured as the mesh. The decoded
+    mesh of a drawer is often its front alone (the stage-1 grid draws it one or two
+    voxels deep, the box layout gives it a body at least half the object deep to slide
+    in): opened in a simulator it would be a floating panel in front of a box the
+    gripper cannot see, and its box scores as a panel. None when the mesh already
+    reaches ``DRAWER_BODY_SHARE`` of the box's depth, or the drawer slides along z."""
+    n = int(np.argmax(np.abs(axis)))
+    if n == 2:
+        return None
+    sign = 1.0 if axis[n] > 0 else -1.0
+    lo, hi = np.asarray(box[0], float), np.asarray(box[1], float)
+    depth = hi[n] - lo[n]
+    vlo, vhi = mesh.bounds
+    back = lo[n] if sign > 0 else hi[n]
+    reach = (hi[n] - vlo[n]) if sign > 0 else (vhi[n] - lo[n])
+    if depth <= 0 or reach >= DRAWER_BODY_SHARE * depth:
+        return None
+    t = min(DRAWER_WALL, 0.25 * float(np.min(np.delete(hi - lo, n))))
+    front = (vlo[n] + t) if sign > 0 else (vhi[n] - t)  # overlapping the front by a wall
+    span = (min(back, front), max(back, front))
+    lat = 1 - n  # the horizontal axis across the drawer (n is 0 or 1)
+    walls = []
+    for a_lo, a_hi in (
+        ((span[0], lo[lat], lo[2]), (span[1], hi[lat], lo[2] + t)),  # floor
+        ((span[0], lo[lat], lo[2]), (span[1], lo[lat] + t, hi[2])),  # side walls
+        ((span[0], hi[lat] - t, lo[2]), (span[1], hi[lat], hi[2])),
+    ):
+        walls.append((np.array(a_lo), np.array(a_hi)))
+    walls.append(  # the back wall
+        (
+            np.array([back if sign > 0 else back - t, lo[lat], lo[2]]),
+            np.array([back + t if sign > 0 else back, hi[lat], hi[2]]),
+        )
+    )
+    pieces = []
+    for w_lo, w_hi in walls:
+        if n == 1:  # the tuples above are (along n, lateral, z): put them in (x, y, z)
+            w_lo, w_hi = w_lo[[1, 0, 2]], w_hi[[1, 0, 2]]
+        b = trimesh.creation.box(np.maximum(w_hi - w_lo, 1e-4))
+        b.apply_translation((w_lo + w_hi) / 2)
+        pieces.append(b)
+    body = trimesh.util.concatenate(pieces)
+    colours = getattr(mesh.visual, "vertex_colors", None)
+    colour = (
+        np.asarray(colours)[:, :4].mean(axis=0).astype(np.uint8)
+        if colours is not None and len(colours)
+        else np.array(DEFAULT_COLOR, np.uint8)
+    )
+    body.visual.vertex_colors = np.tile(colour, (len(body.vertices), 1))
+    return body
 
 
 def _primitive_box(part: Part) -> np.ndarray:
