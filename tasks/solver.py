@@ -131,7 +131,7 @@ class SolverConfig:
     pinch_retry: bool = True  # a grasp stopped short of the handle: again along the bar
     approach_blocked: float = 0.02  # m short of the grasp point that counts as stopped
     pull_moved: float = 0.01  # open fraction a pull must move the part by to count as held
-    regrasp_steps: int = 150  # steps a second grasp (fingers along the bar) needs
+    regrasp_steps: int = 150  # steps the narrow second grasp needs, else it is not tried
     trace: bool = False  # record per-step diagnostics in SolveResult.trace
 
 

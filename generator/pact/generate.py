@@ -467,8 +467,9 @@ def with_visuals(
 ) -> ArticulatedObject:
     """``laid`` (the box layout of ``raw``) with ``clean``'s part meshes as the visuals:
     a movable part's mesh is its clean mesh, cut where it reaches toward a neighbour
-    (``clip_from_neighbours``), plus the bar the layout added (the faces after ``raw``'s
-    mesh), the base's the clean base plus the clean meshes of the parts the layout
+    (``clip_from_neighbours``), a drawer drawn as little more than its front given the
+    body of its collision box (``drawer_body``), plus the bar the layout added (the faces
+    after ``raw``'s mesh), the base's the clean base plus the clean meshes of the parts the layout
     merged into it. A part ``clean`` lacks keeps its mesh."""
     names = {p.name for p in laid.parts}
     boxes = {p.name: _primitive_box(p) for p in laid.parts[1:] if p.primitives}
@@ -511,8 +512,8 @@ def drawer_body(mesh: trimesh.Trimesh, box: np.ndarray, axis: np.ndarray) -> tri
     the mesh lacks: an open-top tray (floor, two side walls, back wall, ``DRAWER_WALL``
     thick) from the box's back up to the mesh's back, coloured as the mesh. The decoded
     mesh of a drawer is often its front alone (the stage-1 grid draws it one or two
-    voxels deep, the box layout gives it a body at least half the object deep to slide
-    in): opened in a simulator it would be a floating panel in front of a box the
+    voxels deep, the box layout gives it a body at least ``DRAWER_BODY`` of the object
+    deep to slide in): opened in a simulator it would be a floating panel in front of a box the
     gripper cannot see, and its box scores as a panel. None when the mesh already
     reaches ``DRAWER_BODY_SHARE`` of the box's depth, or the drawer slides along z."""
     n = int(np.argmax(np.abs(axis)))
