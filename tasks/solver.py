@@ -620,7 +620,10 @@ class ScriptedSolver:
         depth = cfg.recess_depth if bridged else (cfg.none_depth if bare else cfg.grasp_depth)
 
         across = False  # the second try of a blocked approach: fingers along the bar
-        narrow = False  # the second try of a pull that did not move the part
+        # the second try of a pull that did not move the part: the direction (link frame)
+        # its approach is pitched toward, the part's nearer edge across the bar; None: no
+        # such try
+        narrow_toward: np.ndarray | None = None
 
         def pinch_axis(L: np.ndarray, approach: np.ndarray) -> np.ndarray:
             """The axis the fingers close across (world frame)."""
@@ -640,21 +643,16 @@ class ScriptedSolver:
             approach = -(L[:3, :3] @ normal_link)  # into the face carrying the handle
             center = L[:3, :3] @ handle_link + L[:3, 3]
             bar = pinch_axis(L, approach)
-            if narrow:  # from the side away from the part's nearer edge, pitched about the bar
-                closing = np.cross(approach, bar)
-                closing /= max(np.linalg.norm(closing), 1e-9)
-                closing_l = L[:3, :3].T @ closing
-                above = self._part_extent(closing_l) - handle_link @ closing_l
-                below = self._part_extent(-closing_l) + handle_link @ closing_l
-                toward = closing if above < below else -closing
+            if narrow_toward is not None:  # pitched about the bar
                 pitch = np.deg2rad(cfg.narrow_pitch_deg)
-                approach = np.cos(pitch) * approach + np.sin(pitch) * toward
+                approach = np.cos(pitch) * approach + np.sin(pitch) * (L[:3, :3] @ narrow_toward)
             T = grasp_frame(approach, bar, center, self._tcp()[:3, 1])
             T[:3, 3] = center - approach * offset
             return T
 
         start = frac()
         for grip_try in range(2):
+            narrow = narrow_toward is not None
             # 1-2. pre-grasp then approach
             stages = [("pregrasp", cfg.pregrasp_distance, 0.015, 80)]
             if recessed or narrow:  # line the fingertips up with the pocket (the bar)
@@ -778,7 +776,15 @@ class ScriptedSolver:
             log.debug("the pull did not move the part (%.3f); a narrow pinch", moved)
             phase = self._phase = "regrasp"
             self._go(lambda: grasp_goal(cfg.pregrasp_distance), GRIPPER_OPEN, do, budget=30)
-            narrow, across = True, False
+            across = False
+            L = self._link()
+            approach = -(L[:3, :3] @ normal_link)
+            # the fingers' closing direction in the link frame; toward its nearer edge
+            fingers = L[:3, :3].T @ np.cross(approach, pinch_axis(L, approach))
+            fingers /= max(np.linalg.norm(fingers), 1e-9)
+            above = self._part_extent(fingers) - handle_link @ fingers
+            below = self._part_extent(-fingers) + handle_link @ fingers
+            narrow_toward = fingers if above < below else -fingers
         # 4b. not there yet: a door hanging from a bottom hinge, once ajar, falls open
         # under its own weight when let go; any other door or lid is pushed open from
         # inside (the gripper goes round its free edge and presses on its inner face)

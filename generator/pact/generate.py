@@ -42,6 +42,7 @@ from scipy.spatial import cKDTree
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout, robust_bounds
 from generator.part_cleaning import clean_mesh
+from generator.procedural.solids import box as solid_box
 
 from .articulation import (
     DOOR_HINGE,
@@ -529,28 +530,22 @@ def drawer_body(mesh: trimesh.Trimesh, box: np.ndarray, axis: np.ndarray) -> tri
         return None
     t = min(DRAWER_WALL, 0.25 * float(np.min(np.delete(hi - lo, n))))
     front = (vlo[n] + t) if sign > 0 else (vhi[n] - t)  # overlapping the front by a wall
-    span = (min(back, front), max(back, front))
     lat = 1 - n  # the horizontal axis across the drawer (n is 0 or 1)
-    walls = []
-    for a_lo, a_hi in (
-        ((span[0], lo[lat], lo[2]), (span[1], hi[lat], lo[2] + t)),  # floor
-        ((span[0], lo[lat], lo[2]), (span[1], lo[lat] + t, hi[2])),  # side walls
-        ((span[0], hi[lat] - t, lo[2]), (span[1], hi[lat], hi[2])),
-    ):
-        walls.append((np.array(a_lo), np.array(a_hi)))
-    walls.append(  # the back wall
-        (
-            np.array([back if sign > 0 else back - t, lo[lat], lo[2]]),
-            np.array([back + t if sign > 0 else back, hi[lat], hi[2]]),
-        )
-    )
-    pieces = []
-    for w_lo, w_hi in walls:
-        if n == 1:  # the tuples above are (along n, lateral, z): put them in (x, y, z)
-            w_lo, w_hi = w_lo[[1, 0, 2]], w_hi[[1, 0, 2]]
-        b = trimesh.creation.box(np.maximum(w_hi - w_lo, 1e-4))
-        b.apply_translation((w_lo + w_hi) / 2)
-        pieces.append(b)
+
+    def wall(along: tuple, across: tuple, up: tuple) -> trimesh.Trimesh:
+        """A box spanning ``along`` the slide, ``across`` it and ``up`` (each (a, b))."""
+        w_lo, w_hi = np.empty(3), np.empty(3)
+        w_lo[[n, lat, 2]] = min(along), min(across), min(up)
+        w_hi[[n, lat, 2]] = max(along), max(across), max(up)
+        return solid_box(w_lo, w_hi).to_mesh()
+
+    span, full, height = (back, front), (lo[lat], hi[lat]), (lo[2], hi[2])
+    pieces = [
+        wall(span, full, (lo[2], lo[2] + t)),  # floor
+        wall(span, (lo[lat], lo[lat] + t), height),  # side walls
+        wall(span, (hi[lat] - t, hi[lat]), height),
+        wall((back, back + sign * t), full, height),  # back wall
+    ]
     body = trimesh.util.concatenate(pieces)
     colours = getattr(mesh.visual, "vertex_colors", None)
     colour = (
