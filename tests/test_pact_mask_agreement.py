@@ -94,6 +94,28 @@ def test_best_candidate_realizes_the_mask_parts_then_agrees_best():
         Stage1Generator({}, None, candidates=0)  # type: ignore[arg-type]
 
 
+def test_consensus_candidate_keeps_the_part_count_most_samples_agree_on():
+    """Without a mask: of four samples, two draw the two doors, one three parts, one a
+    single door; a two-door sample is kept, the one whose silhouette matches the photo's
+    (the other lacks a corner the photo's solid silhouette shows)."""
+    sil = _front_mask() > 0
+    three = _two_doors()
+    three = np.concatenate([three, np.zeros((1, R, R, R), bool)])
+    three[3, 12:14, 4:12, 4:12] = True  # a third part in front of the two doors
+    three[1:3] &= ~three[3]
+    one = _two_doors()
+    one[1] |= one[2]
+    one[2] = False
+    holed = _two_doors()
+    holed[:, :, 10:, 10:] = False  # a corner cut off along the whole depth
+    pad = np.zeros((1, R, R, R), bool)
+    occ = np.stack([three, np.concatenate([holed, pad]), np.concatenate([one, pad])])
+    occ = np.concatenate([occ, np.concatenate([_two_doors(), pad])[None]])
+    assert Stage1Generator._consensus_candidate(occ, sil) == 3
+    with pytest.raises(ValueError, match="candidates"):
+        Stage1Generator({}, None, candidates_without_mask=0)  # type: ignore[arg-type]
+
+
 def test_carve_missing_takes_the_base_behind_the_parts_mask_pixels():
     occ = _two_doors()
     occ[2] = False  # the sample left the right door empty; the mask shows it

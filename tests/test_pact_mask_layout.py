@@ -207,3 +207,39 @@ def test_a_chest_of_ten_drawers_keeps_all_ten_past_the_flows_slots():
     assert len(movable) == 10
     extra = [p for p in movable if int(p.name.rsplit("_", 1)[1]) >= 8]
     assert len(extra) == 3 and all(p.joint.type == "prismatic" for p in extra)
+
+
+def test_sample_mask_shows_the_samples_parts_where_the_silhouette_is():
+    """Without a part mask, the sample's own parts seen in the view that matches the
+    photo's silhouette stand in for one: on a chest whose sample has its drawers right,
+    each drawer's pixels land on that drawer in the (independently ray-cast) picture."""
+    from generator.pact.mask_agreement import sample_mask
+
+    truth = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
+    occ = np.zeros((3, 32, 32, 32), bool)
+    occ[0, 8:24, 0:32, 6:26] = True  # 16 deep, 32 wide, 20 tall: the chest's proportions
+    occ[0, 22:24, 1:31, 7:25] = False
+    occ[1, 22:24, 1:31, 16:25] = True  # slot 1 (id 2) the upper drawer
+    occ[2, 22:24, 1:31, 7:15] = True  # slot 2 (id 3) the lower one
+    own = sample_mask(occ, truth > 0)
+    assert ((own > 0) == (truth > 0)).all()  # exactly the silhouette
+    for pid in (2, 3):
+        a, b = own == pid, truth == pid
+        assert (a & b).sum() / (a | b).sum() > 0.6
+    # a speck of a part (one voxel across the front) is no part: it counts as the base
+    occ[0] |= occ[2]
+    occ[2] = False
+    occ[2, 22:24, 15:16, 10:11] = True
+    occ[0] &= ~occ[2]
+    own = sample_mask(occ, truth > 0)
+    assert set(np.unique(own)) == {0, 1, 2}
+
+
+def test_sample_mask_of_an_empty_sample_or_silhouette_is_empty():
+    from generator.pact.mask_agreement import sample_mask
+
+    occ = np.zeros((2, 8, 8, 8), bool)
+    sil = np.ones((16, 16), bool)
+    assert not sample_mask(occ, sil).any()
+    occ[0, 2:6, 2:6, 2:6] = True
+    assert not sample_mask(occ, np.zeros((16, 16), bool)).any()

@@ -167,6 +167,50 @@ def agreement(
     return best_view(occ, mask, views, grid)[0]
 
 
+def _stretched(ids: np.ndarray, h: int, w: int) -> np.ndarray:
+    """A (side, side) render of a bounding box stretched onto an (h, w) box (nearest)."""
+    side = ids.shape[0]
+    ri = ((np.arange(h) + 0.5) / h * side).astype(np.int64)
+    ci = ((np.arange(w) + 0.5) / w * side).astype(np.int64)
+    return ids[ri][:, ci]
+
+
+def sample_mask(
+    occ: np.ndarray,
+    silhouette: np.ndarray,
+    views: tuple[np.ndarray, ...] = VIEWS,
+    min_share: float = 0.005,
+) -> np.ndarray:
+    """A part mask (H, W) for an image that came without one: the sample's part ids
+    (slot k -> id k + 1) as seen from the view in which its silhouette agrees best with
+    the image's ``silhouette`` (H, W) bool (``best_view``), stretched onto the
+    silhouette's bounding box; silhouette pixels no part covers are the base (1), pixels
+    off the silhouette 0. A part that covers less than ``min_share`` of the silhouette
+    counts as the base (a speck of a part is no part: the layout would give it a whole
+    front cell). All zeros when the silhouette or the sample is empty.
+
+    A silhouette cannot always tell a view from its mirror image (azimuth a against -a,
+    the front on the other side): for a sample about as deep as it is wide, the parts
+    may then land on the photo's side face (on the procedural test split's ovens)."""
+    sil = np.asarray(silhouette, bool)
+    out = np.zeros(sil.shape, np.int64)
+    union = np.asarray(occ, bool).any(axis=0)
+    if not sil.any() or not union.any():
+        return out
+    _, v = best_view(union[None], sil.astype(np.int64), views)
+    rows, cols = np.nonzero(sil)
+    r0, c0 = rows.min(), cols.min()
+    h, w = rows.max() + 1 - r0, cols.max() + 1 - c0
+    pts, labels, _ = surface_points(occ)
+    ids = render_ids(pts, labels, views[v], int(max(h, w)))  # its bounding box
+    out[r0 : r0 + h, c0 : c0 + w] = np.maximum(_stretched(ids, h, w), 1)
+    out[~sil] = 0
+    for k in np.unique(out):
+        if k > 1 and (out == k).sum() < min_share * sil.sum():
+            out[out == k] = 1
+    return out
+
+
 def carve_missing(
     occ: np.ndarray,
     mask: np.ndarray,

@@ -36,10 +36,15 @@ the mask shows that the kept sample still leaves empty is carved out of the base
 the mask puts it (``mask_agreement.carve_missing``), the movable parts on the front
 are relabelled after the mask (``mask_agreement.relabel_front``), and the sample's height
 is fitted to the proportions of the mask's silhouette (``mask_agreement.fit_height``;
-``fit_height=False`` turns it off). Without a mask there is nothing to check against,
-and one sample is drawn. With or without a mask, holes in the object's outer shell are
-then filled (``stage1.close_surface``; ``close_surface=False`` turns it off), except in
-a laid-out sample, closed already.
+``fit_height=False`` turns it off). Without a mask, the photo's silhouette (its alpha
+channel, else the silhouette U-Net's) stands in: ``candidates_without_mask`` samples are
+drawn, each sample's parts are seen from the view that matches the silhouette
+(``mask_agreement.sample_mask``), and the one kept has the number of parts most samples
+show (``_consensus_candidate``); its own part mask then lays it out on a box fitted to
+the silhouette like a masked one (``layout_without_mask=False`` turns this off: one
+sample, as drawn). With or without a mask, holes in the object's outer shell are then
+filled (``stage1.close_surface``; ``close_surface=False`` turns it off), except in a
+laid-out sample, closed already.
 """
 
 from __future__ import annotations
@@ -60,7 +65,7 @@ from generator.part_cleaning import clean_parts
 
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
-from .mask_agreement import agreement, carve_missing, fit_height, relabel_front
+from .mask_agreement import agreement, carve_missing, fit_height, relabel_front, sample_mask
 from .mask_layout import layout_from_mask
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import (
@@ -168,13 +173,19 @@ class Stage1Generator:
         fit_height: bool = True,
         close_surface: bool = True,
         mask_layout: bool = True,
+        layout_without_mask: bool = True,
+        candidates_without_mask: int = 4,
     ) -> None:
-        if candidates < 1:
-            raise ValueError(f"candidates must be >= 1, got {candidates}")
+        if candidates < 1 or candidates_without_mask < 1:
+            raise ValueError(
+                f"candidates must be >= 1, got {candidates} and {candidates_without_mask}"
+            )
         self.box_layout = box_layout
         self.fit_height = fit_height
         self.close_surface = close_surface
         self.mask_layout = mask_layout
+        self.layout_without_mask = layout_without_mask
+        self.candidates_without_mask = candidates_without_mask
         self.candidates = candidates
         self.models = {k: m.to(device).eval() for k, m in models.items()}
         self.cfg = cfg
@@ -253,16 +264,20 @@ class Stage1Generator:
         rows = [self.inputs(im, None if masks is None else masks[i]) for i, im in enumerate(images)]
         img = torch.cat([r[0] for r in rows])  # (B, 3, S, S)
         m = None if masks is None else torch.cat([r[1] for r in rows])  # (B, S, S)
+        sil = self.silhouettes(alphas)
+        if m is None and sil is None and self.layout_without_mask and "foreground" in self.models:
+            sil = self.models["foreground"].predict(img)  # for the layout below, too
         img, m = encoder_inputs(
-            self.models["image_encoder"],
-            img,
-            m,
-            self.models.get("foreground"),
-            self.silhouettes(alphas),
+            self.models["image_encoder"], img, m, self.models.get("foreground"), sil
         )
-        n = self.candidates if m is not None else 1  # samples per image (module docstring)
+        # samples per image (module docstring): without a mask, some only if the layout
+        # from the silhouette (below) will judge them
+        n = self.candidates if m is not None else 1
+        if m is None and sil is not None and self.layout_without_mask:
+            n = self.candidates_without_mask
         if n > 1:
-            img, m = img.repeat_interleave(n, 0), m.repeat_interleave(n, 0)
+            img = img.repeat_interleave(n, 0)
+            m = None if m is None else m.repeat_interleave(n, 0)
         steps: list[tuple[int, float, torch.Tensor]] = []
         gen = torch.Generator(device=self.device).manual_seed(self.seed)
         occ, exists = generate_parts(
@@ -289,12 +304,20 @@ class Stage1Generator:
                 for b in range(len(images))
             ]
         )
-        if n > 1:
+        if n > 1 and masks is not None:
             keep = np.array(
                 [
                     self._best_candidate(
                         occ[b * n : (b + 1) * n], exists[b * n : (b + 1) * n], shown[b], masks[b]
                     )
+                    + b * n
+                    for b in range(len(images))
+                ]
+            )
+        elif n > 1:
+            keep = np.array(
+                [
+                    self._consensus_candidate(occ[b * n : (b + 1) * n], sil[b].cpu().numpy())
                     + b * n
                     for b in range(len(images))
                 ]
@@ -329,11 +352,44 @@ class Stage1Generator:
             if self.fit_height:  # the proportions of the mask's silhouette
                 occ[b], _ = fit_height(occ[b], masks[b])
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
+        if masks is None and self.layout_without_mask and sil is not None:
+            # no mask: the sample's own parts, seen from the view that matches the
+            # photo's silhouette, stand in for one (mask_agreement.sample_mask); the
+            # object is then laid out on a box fitted to the silhouette like a masked one
+            for b in range(len(occ)):
+                own = sample_mask(occ[b], sil[b].cpu().numpy())
+                slots = [int(i) - 1 for i in np.unique(own) if 1 < int(i) <= T]
+                laid = layout_from_mask(occ[b], own, slots) if slots else None
+                if laid is not None:
+                    occ[b] = laid[0]
+                    exists[b] = occ[b].reshape(T, -1).any(axis=1)
+                    boxed[b] = True
         if self.close_surface:  # holes in the outer shell, with or without a mask
             for b in np.flatnonzero(~boxed):
                 occ[b] = close_surface(occ[b])
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
         return occ, exists
+
+    @staticmethod
+    def _consensus_candidate(occ: np.ndarray, silhouette: np.ndarray) -> int:
+        """Index of the candidate to keep without a mask: the samples' movable parts
+        that show in the view matching the photo's ``silhouette``
+        (``mask_agreement.sample_mask``) are counted; among the candidates with the most
+        common count (the fewer parts on a tie) the one whose silhouette agrees best with
+        the photo's. A single sample of the small model often draws parts that are not
+        there (a one-door washer with four): the count most samples agree on is the
+        better guess."""
+        sil = np.asarray(silhouette, bool)
+        counts = np.array(
+            [int((np.unique(sample_mask(o, sil)) > 1).sum()) for o in occ], dtype=np.int64
+        )
+        freq = np.bincount(counts)
+        mode = int(np.flatnonzero(freq == freq.max())[0])
+        best = np.flatnonzero(counts == mode)
+        if len(best) == 1:
+            return int(best[0])
+        scores = [agreement(occ[c].any(axis=0)[None], sil.astype(np.int64)) for c in best]
+        return int(best[int(np.argmax(scores))])
 
     @staticmethod
     def _best_candidate(
