@@ -1,14 +1,15 @@
 """Generation quality on the fixed test split (issue 5) or the real dev split. Prints JSON, then a table.
 
     .venv/bin/python bench/gen_quality.py --generator retrieval [--per-category 6]
-        [--split-dir runs/test_split] [--no-mask]
+        [--split-dir runs/test_split] [--no-mask [--one-sample-without-mask]]
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--weights FOLDER]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
-passed only with ``--category-hint``), saves the predictions as bundles in
+passed only with ``--category-hint``; without a mask PAct lays its sample out on the
+silhouette unless ``--one-sample-without-mask``), saves the predictions as bundles in
 SPLIT/pred-<generator>/, and prints the paper's metrics per category (generator.metrics)
 as JSON and a rich table.
 
@@ -48,16 +49,21 @@ from generator.metrics import METRIC_KEYS, MetricError, evaluate_dirs, evaluate_
 GENERATORS = ("pact", "retrieval")
 
 
-def load_generator(name: str, weights: Path | None = None):  # noqa: ANN201
+def load_generator(name: str, weights: Path | None = None, one_sample: bool = False):  # noqa: ANN201
     """The generator ``name``; PAct from ``weights`` (a folder laid out as
-    generator/pact/weights/small) when given, else the shipped small model."""
+    generator/pact/weights/small) when given, else the shipped small model; with
+    ``one_sample``, PAct without a mask keeps one stage-1 sample as drawn
+    (``Stage1Generator(layout_without_mask=False)``)."""
     if name == "retrieval":
         from generator.retrieval import RetrievalGenerator
 
         return RetrievalGenerator.default()
-    from generator.pact.generate import PActGenerator
+    from generator.pact.generate import WEIGHTS_DIR, PActGenerator
 
-    return PActGenerator.default() if weights is None else PActGenerator.load(weights)
+    return PActGenerator.load(
+        WEIGHTS_DIR / "small" if weights is None else weights,
+        layout_without_mask=not one_sample,
+    )
 
 
 def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool):  # noqa: ANN202
@@ -123,11 +129,13 @@ def evaluate_images(
 def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
     """Generate from every image of the split with generator ``name``; the run's JSON."""
     weights = args.weights if name == "pact" else None
-    gen = load_generator(name, weights)
+    one_sample = args.one_sample_without_mask and name == "pact"
+    gen = load_generator(name, weights, one_sample)
     tag = (
         f"pred-{name}"
         + (f"-{weights.name}" if weights is not None else "")
         + ("-nomask" if args.no_mask else "")
+        + ("-onesample" if one_sample else "")
         + ("-hint" if args.category_hint else "")
     )
     pred_dir = split_dir / tag
@@ -238,6 +246,12 @@ def main() -> None:
     ap.add_argument("--styles", nargs="+", default=None, help="Real split: product and/or room.")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument("--category-hint", action="store_true")
+    ap.add_argument(
+        "--one-sample-without-mask",
+        action="store_true",
+        help="PAct without a mask: one stage-1 sample kept as drawn, not laid out on a box "
+        "fitted to the silhouette (predictions go to pred-pact-nomask-onesample)",
+    )
     ap.add_argument(
         "--weights",
         type=Path,

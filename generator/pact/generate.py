@@ -149,11 +149,13 @@ class PActGenerator:
         folder: str | Path,
         device: str | None = None,
         candidates: int = 8,
+        layout_without_mask: bool = True,
         **kwargs: Any,
     ) -> PActGenerator:
         """Stage 2 from ``folder/slat_vae`` and ``folder/stage2/{image_encoder,flow,head}``;
         stage 1 from ``folder/ss_vae`` + ``folder/stage1`` when present, drawing
-        ``candidates`` samples per image with a part mask (``stage1_generator``)."""
+        ``candidates`` samples per image with a part mask, and without one laid out on
+        the silhouette unless ``layout_without_mask`` is False (``stage1_generator``)."""
         folder = Path(folder)
         device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         models = {"vae": _load_fp32(folder / "slat_vae", device)}
@@ -172,7 +174,11 @@ class PActGenerator:
             from .stage1_generator import Stage1Generator
 
             stage1 = Stage1Generator.load(
-                folder, device=device, seed=kwargs.get("seed", 0), candidates=candidates
+                folder,
+                device=device,
+                seed=kwargs.get("seed", 0),
+                candidates=candidates,
+                layout_without_mask=layout_without_mask,
             )
         else:
             log.warning("%s: no stage-1 checkpoints; only generate_from_occupancy works", folder)
