@@ -94,9 +94,9 @@ def test_best_candidate_realizes_the_mask_parts_then_agrees_best():
         Stage1Generator({}, None, candidates=0)  # type: ignore[arg-type]
 
 
-def test_consensus_candidate_keeps_the_part_count_most_samples_agree_on():
+def test_consensus_candidate_keeps_the_median_part_count():
     """Without a mask: of four samples, two draw the two doors, one three parts, one a
-    single door; a two-door sample is kept, the one whose silhouette matches the photo's
+    single door; a two-door sample is kept (the median count, 1 2 2 3), the one whose silhouette matches the photo's
     (the other lacks a corner the photo's solid silhouette shows)."""
     sil = _front_mask() > 0
     three = _two_doors()
@@ -112,6 +112,10 @@ def test_consensus_candidate_keeps_the_part_count_most_samples_agree_on():
     occ = np.stack([three, np.concatenate([holed, pad]), np.concatenate([one, pad])])
     occ = np.concatenate([occ, np.concatenate([_two_doors(), pad])[None]])
     assert Stage1Generator._consensus_candidate(occ, sil) == 3
+    # samples that show no movable part do not count while one does
+    empty = np.zeros_like(occ[0])
+    empty[0] = occ[3].any(axis=0)
+    assert Stage1Generator._consensus_candidate(np.stack([empty, empty, occ[2]]), sil) == 2
     with pytest.raises(ValueError, match="candidates"):
         Stage1Generator({}, None, candidates_without_mask=0)  # type: ignore[arg-type]
 

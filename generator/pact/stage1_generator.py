@@ -39,8 +39,8 @@ is fitted to the proportions of the mask's silhouette (``mask_agreement.fit_heig
 ``fit_height=False`` turns it off). Without a mask, the photo's silhouette (its alpha
 channel, else the silhouette U-Net's) stands in: ``candidates_without_mask`` samples are
 drawn, each sample's parts are seen from the view that matches the silhouette
-(``mask_agreement.sample_mask``), and the one kept has the number of parts most samples
-show (``_consensus_candidate``); its own part mask then lays it out on a box fitted to
+(``mask_agreement.sample_mask``), and the one kept has the median number of parts the
+samples show (``_consensus_candidate``); its own part mask then lays it out on a box fitted to
 the silhouette like a masked one (``layout_without_mask=False`` turns this off: one
 sample, as drawn). With or without a mask, holes in the object's outer shell are then
 filled (``stage1.close_surface``; ``close_surface=False`` turns it off), except in a
@@ -374,18 +374,20 @@ class Stage1Generator:
     def _consensus_candidate(occ: np.ndarray, silhouette: np.ndarray) -> int:
         """Index of the candidate to keep without a mask: the samples' movable parts
         that show in the view matching the photo's ``silhouette``
-        (``mask_agreement.sample_mask``) are counted; among the candidates with the most
-        common count (the fewer parts on a tie) the one whose silhouette agrees best with
-        the photo's. A single sample of the small model often draws parts that are not
-        there (a one-door washer with four): the count most samples agree on is the
-        better guess."""
+        (``mask_agreement.sample_mask``) are counted; among the candidates with the
+        median count (the lower of the middle two; of those that show a part at all,
+        when any does) the one whose silhouette agrees best with the photo's. A single sample of the small model often draws parts that are
+        not there (a one-door washer with four): the count the samples agree on is the
+        better guess, and of two the smaller (on the real dev split's product photos
+        without masks the lower median gives RS-dgIoU 1.321 against 1.331 for the most
+        common count; the procedural test split's are equal)."""
         sil = np.asarray(silhouette, bool)
         counts = np.array(
             [int((np.unique(sample_mask(o, sil)) > 1).sum()) for o in occ], dtype=np.int64
         )
-        freq = np.bincount(counts)
-        mode = int(np.flatnonzero(freq == freq.max())[0])
-        best = np.flatnonzero(counts == mode)
+        shown = np.sort(counts[counts > 0]) if (counts > 0).any() else counts  # something moves
+        median = int(shown[(len(shown) - 1) // 2])
+        best = np.flatnonzero(counts == median)
         if len(best) == 1:
             return int(best[0])
         scores = [agreement(occ[c].any(axis=0)[None], sil.astype(np.int64)) for c in best]
