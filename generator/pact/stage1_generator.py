@@ -379,8 +379,8 @@ class Stage1Generator:
         when any does) the one whose silhouette agrees best with the photo's. A single sample of the small model often draws parts that are
         not there (a one-door washer with four): the count the samples agree on is the
         better guess, and of two the smaller (on the real dev split's product photos
-        without masks the lower median gives RS-dgIoU 1.321 against 1.331 for the most
-        common count; the procedural test split's are equal)."""
+        without masks RS-dgIoU 1.327 against 1.331 for the most common count; the
+        procedural test split's are equal)."""
         sil = np.asarray(silhouette, bool)
         counts = np.array(
             [int((np.unique(sample_mask(o, sil)) > 1).sum()) for o in occ], dtype=np.int64
