@@ -17,7 +17,9 @@ image and keeps the one that realizes the mask's parts and agrees with it best; 
 the mask shows and the kept sample leaves empty is then carved out of the base where the
 mask puts it (:func:`carve_missing`), misplaced parts are moved to where the mask puts
 them (:func:`relabel_front`), and, since the score is blind to proportions, the sample's
-height is fitted to the aspect of the mask's silhouette (:func:`fit_height`).
+height is fitted to the aspect of the mask's silhouette (:func:`fit_height`). Without a
+mask, :func:`sample_mask` makes one from a sample and the photo's silhouette: the
+sample's parts as seen from the view whose silhouette agrees best.
 
 Ground-truth part voxels score 0.66 on average against the masks of the 42 test-split
 renders (0.32-0.83; the renders are perspective, the score's views orthographic); against
