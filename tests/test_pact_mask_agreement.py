@@ -13,6 +13,7 @@ from generator.pact.mask_agreement import (
     mask_ids,
     relabel_front,
     render_ids,
+    sample_mask,
     surface_points,
     view_rotation,
 )
@@ -111,11 +112,16 @@ def test_consensus_candidate_keeps_the_median_part_count():
     pad = np.zeros((1, R, R, R), bool)
     occ = np.stack([three, np.concatenate([holed, pad]), np.concatenate([one, pad])])
     occ = np.concatenate([occ, np.concatenate([_two_doors(), pad])[None]])
-    assert Stage1Generator._consensus_candidate(occ, sil) == 3
+
+    def keep(candidates: np.ndarray) -> int:
+        own = [sample_mask(o, sil) for o in candidates]
+        return Stage1Generator._consensus_candidate(candidates, own, sil)
+
+    assert keep(occ) == 3
     # samples that show no movable part do not count while one does
     empty = np.zeros_like(occ[0])
     empty[0] = occ[3].any(axis=0)
-    assert Stage1Generator._consensus_candidate(np.stack([empty, empty, occ[2]]), sil) == 2
+    assert keep(np.stack([empty, empty, occ[2]])) == 2
     with pytest.raises(ValueError, match="candidates"):
         Stage1Generator({}, None, candidates_without_mask=0)  # type: ignore[arg-type]
 

@@ -314,14 +314,20 @@ class Stage1Generator:
                     for b in range(len(images))
                 ]
             )
-        elif n > 1:
+        own_masks = None  # without a mask: the kept samples' own part masks (sample_mask)
+        if n > 1 and masks is None:
+            sils = sil.cpu().numpy()
+            own = [sample_mask(o, sils[i // n]) for i, o in enumerate(occ)]
             keep = np.array(
                 [
-                    self._consensus_candidate(occ[b * n : (b + 1) * n], sil[b].cpu().numpy())
+                    self._consensus_candidate(
+                        occ[b * n : (b + 1) * n], own[b * n : (b + 1) * n], sils[b]
+                    )
                     + b * n
                     for b in range(len(images))
                 ]
             )
+            own_masks = [own[k] for k in keep]
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
@@ -357,7 +363,7 @@ class Stage1Generator:
             # photo's silhouette, stand in for one (mask_agreement.sample_mask); the
             # object is then laid out on a box fitted to the silhouette like a masked one
             for b in range(len(occ)):
-                own = sample_mask(occ[b], sil[b].cpu().numpy())
+                own = own_masks[b] if own_masks else sample_mask(occ[b], sil[b].cpu().numpy())
                 slots = [int(i) - 1 for i in np.unique(own) if 1 < int(i) <= T]
                 laid = layout_from_mask(occ[b], own, slots) if slots else None
                 if laid is not None:
@@ -371,20 +377,18 @@ class Stage1Generator:
         return occ, exists
 
     @staticmethod
-    def _consensus_candidate(occ: np.ndarray, silhouette: np.ndarray) -> int:
-        """Index of the candidate to keep without a mask: the samples' movable parts
-        that show in the view matching the photo's ``silhouette``
-        (``mask_agreement.sample_mask``) are counted; among the candidates with the
-        median count (the lower of the middle two; of those that show a part at all,
-        when any does) the one whose silhouette agrees best with the photo's. A single sample of the small model often draws parts that are
-        not there (a one-door washer with four): the count the samples agree on is the
-        better guess, and of two the smaller (on the real dev split's product photos
-        without masks RS-dgIoU 1.327 against 1.331 for the most common count; the
-        procedural test split's are equal)."""
+    def _consensus_candidate(occ: np.ndarray, own: list[np.ndarray], silhouette: np.ndarray) -> int:
+        """Index of the candidate to keep without a mask: the movable parts each sample
+        shows in its own part mask ``own`` (``mask_agreement.sample_mask`` against the
+        photo's ``silhouette``) are counted; among the candidates with the median count
+        (the lower of the middle two; of those that show a part at all, when any does) the
+        one whose silhouette agrees best with the photo's. A single sample of the small
+        model often draws parts that are not there (a one-door washer with four): the
+        count the samples agree on is the better guess, and of two the smaller (on the
+        real dev split's product photos without masks RS-dgIoU 1.327 against 1.331 for
+        the most common count; the procedural test split's are equal)."""
         sil = np.asarray(silhouette, bool)
-        counts = np.array(
-            [int((np.unique(sample_mask(o, sil)) > 1).sum()) for o in occ], dtype=np.int64
-        )
+        counts = np.array([int((np.unique(m) > 1).sum()) for m in own], dtype=np.int64)
         shown = np.sort(counts[counts > 0]) if (counts > 0).any() else counts  # something moves
         median = int(shown[(len(shown) - 1) // 2])
         best = np.flatnonzero(counts == median)
