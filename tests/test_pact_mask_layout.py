@@ -128,6 +128,27 @@ def test_layout_leaves_a_cavity_behind_a_panel():
     assert ndimage.label(out[0])[1] == 1
 
 
+def test_layout_fits_the_depth_when_the_sample_has_it_clearly_wrong():
+    # the sample's chest is as deep as it is wide (the chest is half as deep)
+    deep = np.zeros((3, 32, 32, 32), bool)
+    deep[0, 0:28, 0:32, 6:26] = True
+    deep[1, 28:32, 1:31, 16:25] = True
+    deep[2, 28:32, 1:31, 7:15] = True
+    # seen from above, the top face says otherwise: the box takes the fitted depth
+    mask = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=30.0)
+    out, cam = layout_from_mask(deep, mask, [0, 1, 2])
+    assert abs(np.log(cam.depth / 0.52)) < 0.2
+    union = out.any(axis=0)
+    assert abs(np.ptp(np.argwhere(union)[:, 0]) + 1 - 16) <= 3  # 0.52 of the 32-cell width
+    # a sample with the chest's own depth keeps it (see the tests above: 16 cells of 32)
+    _, kept = layout_from_mask(_sample(depth=10), mask, [0, 1, 2])
+    assert kept.depth == 0.5
+    # seen nearly level, depth trades against azimuth: the sample's depth stays
+    level = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=35.0, elevation_deg=5.0)
+    _, cam = layout_from_mask(deep, level, [0, 1, 2])
+    assert cam.depth == 1.0
+
+
 def test_layout_carves_a_table_between_its_legs():
     legs = [
         ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)

@@ -18,7 +18,9 @@ the best few. On the 76 real product renders of the dev split (DEVELOPERS.md) wi
 box's depth left free: azimuth within 4 degrees of the true camera's (median), elevation
 within 2, height over width within 8 %, depth over width within 18 % (a near-frontal
 view says little about depth, so :func:`layout_from_mask` takes the depth from the
-stage-1 sample and fits the rest).
+stage-1 sample and fits the rest; it fits the depth too when the camera looks down on
+the top by ``DEPTH_FREE_ELEVATION`` or more and the freed depth explains the silhouette
+clearly better, by ``DEPTH_FREE_GAIN`` of IoU).
 
 :func:`layout_from_mask` then rebuilds the sample's part grids: the base is the box,
 carved where the camera sees background through it (a desk's kneehole, the space
@@ -46,6 +48,14 @@ DEPTH_RANGE = (0.25, 2.5)  # box depth over width searched when the depth is fre
 HEIGHT_RANGE = (0.2, 4.0)  # box height over width
 REFINE_STARTS = 6  # coarse candidates refined
 MIN_FIT_IOU = 0.5  # below this silhouette IoU the object is no box: the layout is not used
+#: the box's depth is fitted too (not the sample's) when that raises the silhouette IoU by
+#: more than ``DEPTH_FREE_GAIN``, both fits look down on the box's top by at least
+#: ``DEPTH_FREE_ELEVATION`` (the top face is what shows the depth) and their azimuths
+#: differ by at most ``DEPTH_FREE_TURN`` (seen from the side alone, depth trades against
+#: azimuth: a fit that turns the box further has slid along that trade, not read depth)
+DEPTH_FREE_GAIN = 0.02
+DEPTH_FREE_ELEVATION = np.radians(15.0)
+DEPTH_FREE_TURN = np.radians(12.0)
 #: below this silhouette IoU the object is a box only roughly (legs, an overhanging top): the
 #: base also keeps to the sample's own cells (grown by ``SAMPLE_MARGIN``), since one view
 #: carves only a wedge behind each leg
@@ -266,9 +276,11 @@ def layout_from_mask(
     mask (module docstring), and that fit; None when the sample is empty, the mask shows
     no movable part or the fit's silhouette IoU is below ``MIN_FIT_IOU``. ``slots`` are
     the slots the mask shows (slot k <-> mask id k + 1; ids beyond the grids' slots count
-    as the base). The box's depth over width is the sample's; each movable part keeps
-    its depth in the sample (scaled with the box; the median of the others', or
-    ``CARVE_DEPTH`` cells, for a part the sample left empty)."""
+    as the base). The box's depth over width is the sample's (the fitted one where the
+    camera looks down on the top and that fits the silhouette clearly better: module
+    docstring); each movable part keeps its depth in the sample (scaled with the box;
+    the median of the others', or ``CARVE_DEPTH`` cells, for a part the sample left
+    empty)."""
     occ = np.asarray(occ, bool)
     mask = np.asarray(mask)
     T, R = occ.shape[0], occ.shape[1]
@@ -278,7 +290,16 @@ def layout_from_mask(
         return None
     cells = np.argwhere(union)
     extent = np.ptp(cells, axis=0) + 1
-    camera = fit_box_camera(mask, [k + 1 for k in movable], depth=extent[0] / extent[1], fovy=fovy)
+    ids = [k + 1 for k in movable]
+    camera = fit_box_camera(mask, ids, depth=extent[0] / extent[1], fovy=fovy)
+    if camera.elevation >= DEPTH_FREE_ELEVATION:
+        free = fit_box_camera(mask, ids, fovy=fovy)
+        if (
+            free.iou - camera.iou > DEPTH_FREE_GAIN
+            and free.elevation >= DEPTH_FREE_ELEVATION
+            and abs(free.azimuth - camera.azimuth) <= DEPTH_FREE_TURN
+        ):
+            camera = free
     if camera.iou < MIN_FIT_IOU:
         return None
 
