@@ -140,6 +140,8 @@ def test_layout_fits_the_depth_when_the_sample_has_it_clearly_wrong():
     assert abs(np.log(cam.depth / 0.52)) < 0.2
     union = out.any(axis=0)
     assert abs(np.ptp(np.argwhere(union)[:, 0]) + 1 - 16) <= 3  # 0.52 of the 32-cell width
+    # unless told to keep the sample's (a mask drawn from the sample, without a user's)
+    assert layout_from_mask(deep, mask, [0, 1, 2], fit_depth=False)[1].depth == 1.0
     # a sample with the chest's own depth keeps it (see the tests above: 16 cells of 32)
     _, kept = layout_from_mask(_sample(depth=10), mask, [0, 1, 2])
     assert kept.depth == 0.5

@@ -271,16 +271,17 @@ def layout_from_mask(
     mask: np.ndarray,
     slots: list[int],
     fovy: float = FOVY,
+    fit_depth: bool = True,
 ) -> tuple[np.ndarray, BoxCamera] | None:
     """Part occupancies (T, R, R, R) rebuilt from a box and camera fitted to the part
     mask (module docstring), and that fit; None when the sample is empty, the mask shows
     no movable part or the fit's silhouette IoU is below ``MIN_FIT_IOU``. ``slots`` are
     the slots the mask shows (slot k <-> mask id k + 1; ids beyond the grids' slots count
-    as the base). The box's depth over width is the sample's (the fitted one where the
-    camera looks down on the top and that fits the silhouette clearly better: module
-    docstring); each movable part keeps its depth in the sample (scaled with the box;
-    the median of the others', or ``CARVE_DEPTH`` cells, for a part the sample left
-    empty)."""
+    as the base). The box's depth over width is the sample's (with ``fit_depth``, the
+    fitted one where the camera looks down on the top and that fits the silhouette
+    clearly better: module docstring); each movable part keeps its depth in the sample
+    (scaled with the box; the median of the others', or ``CARVE_DEPTH`` cells, for a
+    part the sample left empty)."""
     occ = np.asarray(occ, bool)
     mask = np.asarray(mask)
     T, R = occ.shape[0], occ.shape[1]
@@ -292,7 +293,7 @@ def layout_from_mask(
     extent = np.ptp(cells, axis=0) + 1
     ids = [k + 1 for k in movable]
     camera = fit_box_camera(mask, ids, depth=extent[0] / extent[1], fovy=fovy)
-    if camera.elevation >= DEPTH_FREE_ELEVATION:
+    if fit_depth and camera.elevation >= DEPTH_FREE_ELEVATION:
         free = fit_box_camera(mask, ids, fovy=fovy)
         if (
             free.iou - camera.iou > DEPTH_FREE_GAIN

@@ -362,10 +362,11 @@ class Stage1Generator:
             # no mask: the sample's own parts, seen from the view that matches the
             # photo's silhouette, stand in for one (mask_agreement.sample_mask); the
             # object is then laid out on a box fitted to the silhouette like a masked one
+            # (with the sample's depth: a mask drawn from the sample follows its depth)
             for b in range(len(occ)):
                 own = own_masks[b] if own_masks else sample_mask(occ[b], sil[b].cpu().numpy())
                 slots = [int(i) - 1 for i in np.unique(own) if 1 < int(i) <= T]
-                laid = layout_from_mask(occ[b], own, slots) if slots else None
+                laid = layout_from_mask(occ[b], own, slots, fit_depth=False) if slots else None
                 if laid is not None:
                     occ[b] = laid[0]
                     exists[b] = occ[b].reshape(T, -1).any(axis=1)
