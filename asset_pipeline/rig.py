@@ -58,6 +58,10 @@ prismatic  2.0      0.1       100     1.0 m/s
 revolute   0.5      0.02      100     2.0 rad/s
 =========  =======  ========  ======  ==============
 
+A drawer heavier than 15 kg gets a lower friction coefficient, at most
+``max_slide_friction / (m g)`` (15 N: SAPIEN's friction is the coefficient times the
+load, see below), so that a hand's pull opens it.
+
 Damping is capped at ``I / min_damping_time`` (0.01 s), ``I`` the mass (prismatic) or
 the moment of inertia about the hinge (revolute): a part that small (a 5 cm flap of a
 generated object, I ~ 5e-5 kg m^2) would otherwise be damped a thousand times faster than
@@ -97,6 +101,8 @@ from .built_asset import (
 )
 
 log = logging.getLogger(__name__)
+
+GRAVITY = 9.81  # m/s^2
 
 #: A fallback handle sits this far (fraction of the part's width) in from the edge
 #: opposite the hinge, but at most HANDLE_INSET_MAX metres.
@@ -147,6 +153,10 @@ class PhysicsDefaults:
     hold_window: float = 0.2
     #: ... but no more friction than this.
     max_hold_friction: float = 1.0
+    #: A drawer's friction is lowered so that what SAPIEN makes of it (the coefficient
+    #: times the drawer's weight) stays at most this (N): a drawer the layout makes long
+    #: and heavy (a deep desk's, 30-40 kg) would otherwise not open to a hand's pull.
+    max_slide_friction: float = 15.0
 
     def material(self, material: str) -> MaterialModel:
         """The :class:`MaterialModel` of ``material`` (the default material's if unknown)."""
@@ -460,6 +470,10 @@ def build_rig(
             hold = min(physics.max_hold_friction, physics.hold_safety * lever)
             if hold > joint_physics.friction:  # a bottom-hinged door, a lid
                 joint_physics = replace(joint_physics, friction=hold)
+        elif j.type == "prismatic":
+            slide = physics.max_slide_friction / max(mp.mass * GRAVITY, 1e-9)
+            if joint_physics.friction > slide:
+                joint_physics = replace(joint_physics, friction=slide)
         pivot = np.eye(4)
         pivot[:3, 3] = origin - link_origin(obj, j.parent)
         joints.append(

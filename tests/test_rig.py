@@ -171,6 +171,23 @@ def test_build_rig_frames_masses_and_files():
     assert rig.handles["door_0"].kind == "none"
 
 
+def test_a_heavy_drawer_gets_less_friction_so_a_pull_opens_it():
+    obj = _object()  # its drawer: a 0.4 x 0.5 x 0.2 metal box, about 5 kg
+    pieces = _pieces(obj, {"base": 1, "drawer_0": 1, "door_0": 1})
+    physics = PhysicsDefaults(prismatic=JointPhysics(damping=3.0, friction=0.2, velocity=0.5))
+    rig = build_rig(obj, pieces, "cab", physics)
+    mass = rig.link("drawer_0").inertial.mass
+    assert 0.2 * mass * 9.81 < 15.0  # a light drawer keeps its friction
+    assert {j.name: j for j in rig.joints}["joint_drawer_0"].physics.friction == 0.2
+    # the same drawer allowed only 5 N of friction: the coefficient times its weight is 5 N
+    strict = PhysicsDefaults(
+        prismatic=JointPhysics(damping=3.0, friction=0.2, velocity=0.5), max_slide_friction=5.0
+    )
+    joint = {j.name: j for j in build_rig(obj, pieces, "cab", strict).joints}["joint_drawer_0"]
+    assert joint.physics.friction * mass * 9.81 == pytest.approx(5.0)
+    assert joint.physics.damping == 3.0
+
+
 def test_mass_comes_from_the_primitives_when_a_part_has_them():
     """A generated part: a small fragment of mesh, a layout box as its collision solid.
     Its mass is the box's (wood: a 19 mm skin around air), not the fragment's."""
