@@ -19,8 +19,9 @@ box's depth left free: azimuth within 4 degrees of the true camera's (median), e
 within 2, height over width within 8 %, depth over width within 18 % (a near-frontal
 view says little about depth, so :func:`layout_from_mask` takes the depth from the
 stage-1 sample and fits the rest; it fits the depth too when the camera looks down on
-the top by ``DEPTH_FREE_ELEVATION`` or more and the freed depth explains the silhouette
-clearly better, by ``DEPTH_FREE_GAIN`` of IoU).
+the top by ``DEPTH_FREE_ELEVATION`` or more, the freed depth explains the silhouette
+clearly better, by ``DEPTH_FREE_GAIN`` of IoU, and the box turns by no more than
+``DEPTH_FREE_TURN`` for it).
 
 :func:`layout_from_mask` then rebuilds the sample's part grids: the base is the box,
 carved where the camera sees background through it (a desk's kneehole, the space
