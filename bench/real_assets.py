@@ -127,7 +127,8 @@ def main() -> None:
         for r in check_tasks(bundles, seed=args.seed):
             parts.append(
                 {"asset": r.asset_id, "part": r.part, "opened": r.success,
-                 "fraction": round(r.final_fraction, 3), "reason": r.reason}
+                 "fraction": round(r.final_fraction, 3), "stands": 1 + r.stands,
+                 "reason": r.reason}
             )  # fmt: skip
         solver_seconds = time.perf_counter() - t
 
@@ -166,6 +167,8 @@ def main() -> None:
             parts=len(parts),
             opened=opened,
             opened_share=round(opened / len(parts), 3) if parts else None,
+            # opened where the env placed the robot (no further stand)
+            opened_where_placed=sum(p["opened"] and p["stands"] == 1 for p in parts),
             solver_seconds=round(solver_seconds, 1),
             parts_not_opened=[p for p in parts if not p["opened"]],
         )

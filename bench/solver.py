@@ -60,6 +60,8 @@ def main() -> None:
                 "parts": len(results),
                 "opened": opened,
                 "rate": round(opened / max(1, len(results)), 4),
+                # opened where the env placed the robot (no further stand)
+                "opened_where_placed": sum(r.success and not r.stands for r in results),
                 "by": {k: f"{v[0]}/{v[1]}" for k, v in sorted(by.items())},
                 "seconds_per_part": round(t_check / max(1, len(results)), 2),
                 "build_seconds": round(t_build, 1),

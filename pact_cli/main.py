@@ -644,7 +644,7 @@ def check_tasks_cmd(
         )
         raise typer.Exit(1)
     table = Table(title="pact check-tasks")
-    for col in ("asset", "part", "task", "opened", "fraction", "seconds", "reason"):
+    for col in ("asset", "part", "task", "opened", "fraction", "stands", "seconds", "reason"):
         table.add_column(col)
     for r in results:
         ok = "[green]yes[/green]" if r.success else "[red]no[/red]"
@@ -654,12 +654,16 @@ def check_tasks_cmd(
             r.env_id,
             ok,
             f"{r.final_fraction:.2f}",
+            str(1 + r.stands),
             f"{r.seconds:.1f}",
             escape(r.reason),
         )
     wide_console().print(table)
     summary = summarize(results)
-    console.print(f"opened {summary['opened']} of {summary['parts']} parts ({summary['rate']:.0%})")
+    console.print(
+        f"opened {summary['opened']} of {summary['parts']} parts ({summary['rate']:.0%}; "
+        f"{summary['opened_where_placed']} without moving the robot's base)"
+    )
     if out is not None:
         from generator.articulated import atomic_write_bytes
 

@@ -17,6 +17,11 @@ ranked for a pull-then-push plan (:func:`push_plan_poses`): pull the door a thir
 the way or so, let go, go round the free edge and push the inner face on
 (:func:`push_waypoints_link`), the robot standing where the door, swept only as far
 as the push takes it, keeps clear of its base.
+
+Where the arm runs out of reach on the push, the solver moves the base, as a mobile
+base would: :func:`push_stand` ranks stands in front of the opening (behind the door's
+plane, clear of what the door sweeps from where it is) for pushing it on, and
+:func:`base_route` finds the base's way there round the object and the open door.
 """
 
 from __future__ import annotations
@@ -120,6 +125,8 @@ PUSH_END = 0.9  # of the range: how far a planned push must reach
 # plan's followed fraction must beat the grasp's by this much
 PUSH_MARGIN = 0.35
 PUSH_FREE_EDGE = 1.12  # the free edge's distance from the hinge, guessed from the handle's
+PUSH_INSIDE_APPROACH = 0.12  # m behind the pressing point a hand coming from inside stops
+PUSH_STAND_BACK = 0.35  # m a second stand keeps behind the door's plane (room for the hand)
 
 
 def push_waypoints_link(
@@ -130,12 +137,15 @@ def push_waypoints_link(
     edge_clearance: float = PUSH_EDGE_CLEARANCE,
     edge: float | None = None,
     press_radial: float = PUSH_RADIUS,
+    inside: bool = False,
 ) -> list[tuple[str, list[np.ndarray]]]:
     """Link-frame tcp poses (two finger orientations each) going from a let-go handle
     round the free edge to the pushing pose on the door's inner face: ``edge`` (beyond
     the free edge, in front of the face), ``behind`` (beyond it, behind the inner face)
     and ``press`` (``press_radial`` x the handle's radius from the hinge, behind the
-    inner face ``depth`` metres behind the hinge plane).
+    inner face ``depth`` metres behind the hinge plane). ``inside``: for a hand that
+    comes from the inner side (a robot standing in front of the opening), ``inside``
+    (``PUSH_INSIDE_APPROACH`` further behind the pressing point) then ``press``.
 
     The closed fingers point along ``cos(tilt) * -radial + sin(tilt) * normal``: at 0
     a paddle lying along the inner face, pointing at the hinge (fingers closing along
@@ -148,7 +158,7 @@ def push_waypoints_link(
     """
     a, r, n, radius = hinge_frame_link(part)
     z = np.cos(tilt) * -r + np.sin(tilt) * n
-    inside = depth + clearance * np.cos(tilt) + 0.01 * np.sin(tilt)
+    behind = depth + clearance * np.cos(tilt) + 0.01 * np.sin(tilt)
     edge = PUSH_FREE_EDGE * radius if edge is None else edge
     beyond = (edge + edge_clearance) / radius
     frames = []
@@ -157,11 +167,10 @@ def push_waypoints_link(
         R[:3, :3] = np.stack([np.cross(y, z), y, z], axis=1)
         frames.append(R)
     out = []
-    for name, radial, dep in (
-        ("edge", beyond, -0.1),
-        ("behind", beyond, inside),
-        ("press", press_radial, inside),
-    ):
+    stops = [("edge", beyond, -0.1), ("behind", beyond, behind)]
+    if inside:
+        stops = [("inside", press_radial, behind + PUSH_INSIDE_APPROACH)]
+    for name, radial, dep in stops + [("press", press_radial, behind)]:
         p = push_point_link(part, radial, dep)
         poses = []
         for R in frames:
@@ -239,30 +248,48 @@ def push_steps(
         B[:3, 3] -= T[:3, 2] * standoff
         back.append(B)
     steps += _interpolate(held, back, 2)
+    return _round_and_press(part, fraction, tilt, depth, steps, back)
+
+
+def _round_and_press(
+    part: MovablePart,
+    fraction: float,
+    tilt: float,
+    depth: float,
+    steps: list,
+    prev: list | None,
+    inside: bool = False,
+    end: float = PUSH_END,
+) -> tuple[list, np.ndarray]:
+    """``steps`` followed by the hand's way from ``prev`` (None: no way there, the
+    first waypoint is the first step) round the free edge of the part ``fraction``
+    open (``inside``: from the inner side, see :func:`push_waypoints_link`) and the
+    push on to ``end``; and the part's open fraction at each step."""
     L = link_pose(part, fraction)
-    prev = back
-    waypoints = push_waypoints_link(part, tilt, depth)
+    waypoints = push_waypoints_link(part, tilt, depth, inside=inside)
     for _, poses in waypoints:
         cur = [L @ T for T in poses]
-        steps += _interpolate(prev, cur, 3)
+        steps += [cur] if prev is None else _interpolate(prev, cur, 3)
         prev = cur
     press = waypoints[-1][1]
-    pushed_f = np.linspace(fraction, max(PUSH_END, fraction), 6)[1:]
+    pushed_f = np.linspace(fraction, max(end, fraction), 6)[1:]
     steps += [[link_pose(part, f) @ T for T in press] for f in pushed_f]
     fractions = np.concatenate([np.full(len(steps) - len(pushed_f), fraction), pushed_f])
     return steps, fractions
 
 
-def _swept_points(part: MovablePart, bounds: tuple | None = None, end: float = 1.0) -> np.ndarray:
-    """(M, 3) points of the volume a door sweeps (up to ``end`` of its range): hinge-to-
-    handle segments along the path.
+def _swept_points(
+    part: MovablePart, bounds: tuple | None = None, end: float = 1.0, start: float = 0.0
+) -> np.ndarray:
+    """(M, 3) points of the volume a door sweeps (from ``start`` up to ``end`` of its
+    range): hinge-to-handle segments along the path.
 
     With the object's ``bounds``, a door on a horizontal hinge (bottom-hinged, a lid)
     also spans the object's extent along its hinge: it comes down over its full width,
     onto a robot standing beside the handle.
     """
     origin = np.asarray(part.origin, dtype=float)
-    path = handle_path(part, np.linspace(0.0, end, 12))
+    path = handle_path(part, np.linspace(start, end, 12))
     s = np.linspace(0.0, 1.15, 8)[:, None, None]
     pts = (origin + s * (path - origin)[None]).reshape(-1, 3)
     axis = np.asarray(part.axis, dtype=float)
@@ -497,16 +524,17 @@ def _candidate_bases(
     approach: np.ndarray,
     swept_end: float = 1.0,
     high: bool = False,
+    swept_start: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid of bases (C, 3) in the object frame, their yaws (C,) toward the middle of
     ``path`` and heuristic costs (C,; inf: the base column hits the object or the door
-    swept up to ``swept_end`` of its range): ``path`` points (K, 3) within comfortable
+    swept from ``swept_start`` up to ``swept_end`` of its range): ``path`` points (K, 3) within comfortable
     reach of the shoulder, the gripper, pointing along ``approach`` (K, 3) at each,
     reaching away from the body. ``high``: also bases up to 0.8 m above the path,
     standing over the volume the door sweeps (a bottom-hinged door or a lid comes down
     in front of the object, under them)."""
     lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    swept = _swept_points(part, bounds, swept_end)
+    swept = _swept_points(part, bounds, swept_end, swept_start)
     centre = path.mean(axis=0)
     xs = np.arange(lo[0] + 0.1, hi[0] + 1.4, 0.05)
     ys = np.arange(lo[1] - 1.0, hi[1] + 1.0, 0.05)
@@ -677,3 +705,159 @@ def robot_base_for_part(
             if score > best_score:
                 best_score, picked = score, (base[i], float(yaw[i]), q)
     return picked
+
+
+def push_stand(
+    reach: PandaReach,
+    part: MovablePart,
+    bounds: tuple,
+    fraction: float,
+    depth: float = PUSH_DEPTH,
+    standoff: float = 0.12,
+    n_checked: tuple[int, int] = (12, 24),
+    end: float = PUSH_END,
+) -> tuple[np.ndarray, float, float, float] | None:
+    """Another stand for pushing on a door left ``fraction`` open (the arm ran out of
+    reach where it stands): (base (3,), yaw in the object frame, the open fraction up to
+    which the arm follows the push from its ready pose, the pusher's tilt), or None when
+    no base is clear.
+
+    The push presses the inner face ``PUSH_RADIUS`` x the handle's radius from the
+    hinge from ``fraction`` on to ``end``, or, where no base lets the arm follow that far,
+    part of the way (a door swinging round to lie along the object's side takes the
+    pressing point round the corner: a second push from a third stand goes on from
+    there). The base stands clear of the object and of the volume the door sweeps over
+    the stretch pushed only: the space it swept on its way to ``fraction`` (in front of
+    where it was closed) is free now, and a robot standing there, at least
+    ``PUSH_STAND_BACK`` behind the door's plane, faces the inner face. Candidates are
+    ranked as in :func:`robot_base_for_part`. Only for a door on a vertical hinge.
+    """
+    axis = np.asarray(part.axis, dtype=float)
+    if abs(axis[2]) < 0.7 * np.linalg.norm(axis) or end <= fraction:
+        return None  # a lid or a bottom-hinged door: its inner side is under it
+    _, r, n, _ = hinge_frame_link(part)
+    press = np.append(push_point_link(part, PUSH_RADIUS, depth), 1.0)
+    slant = (n - r) / np.sqrt(2.0)
+    L = link_pose(part, fraction)
+    best: tuple | None = None
+    for stop in np.linspace(end, fraction + (end - fraction) / 3, 3):
+        push_f = np.linspace(fraction, stop, 6)
+        pts = np.array([link_pose(part, f)[:3] @ press for f in push_f])
+        dirs = np.array([link_pose(part, f)[:3, :3] @ slant for f in push_f])
+        base, yaw, cost = _candidate_bases(part, bounds, pts, dirs, stop, swept_start=fraction)
+        # on the inner side of the door (an arm reaching round from the outer side
+        # would sweep it shut)
+        inner = (base - L[:3, 3]) @ (L[:3, :3] @ n)
+        cost = np.where(inner < -PUSH_STAND_BACK, cost, np.inf)
+        for tilt in PUSH_TILTS:
+            steps, fractions = _round_and_press(part, fraction, tilt, depth, [], None, True, stop)
+            for i in _shortlist(cost, n_checked):
+                followed, _ = reach.follow(base[i], float(yaw[i]), steps, standoff)
+                k = int(round(followed * len(steps)))
+                reached = float(fractions[k - 1]) if k else fraction
+                key = (reached, -cost[i])
+                if best is None or key > best[0]:
+                    best = (key, base[i], float(yaw[i]), reached, tilt)
+        if best is not None and best[3] >= stop - 1e-9:
+            break  # the whole stretch: no need for a shorter one
+    if best is None:
+        return None
+    return best[1], best[2], best[3], best[4]
+
+
+ROUTE_CELL = 0.05  # m: the grid a base's route between two stands is planned on
+ROUTE_BERTH = 0.5  # m a driving base keeps from the object and the door where it can
+
+
+def base_route(
+    part: MovablePart,
+    bounds: tuple,
+    fraction: float,
+    start: np.ndarray,
+    goal: np.ndarray,
+    clearance: float = BASE_CLEARANCE,
+    berth: float = ROUTE_BERTH,
+) -> np.ndarray | None:
+    """(W, 2) object-frame xy waypoints of a route for the robot's base from ``start``
+    to ``goal`` (xy) that keeps ``clearance`` from the object's box and from the door
+    standing ``fraction`` open, and ``berth`` where it can (the arm, drawn in over the
+    base, reaches out past the base column): the cheapest path on a ``ROUTE_CELL`` grid
+    (8-connected; a cell within the berth costs more the nearer it is), then straight
+    legs wherever they keep as far off as the path they replace. None: no such route.
+
+    The start may lie within the clearance (the arm was just pushing there): the route
+    then leaves it only by cells that get further from the object and the door.
+    """
+    import heapq
+
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    start, goal = np.asarray(start, dtype=float)[:2], np.asarray(goal, dtype=float)[:2]
+    door = _swept_points(part, bounds, fraction, fraction)[:, :2]
+    corner = np.minimum(np.minimum(start, goal), lo[:2]) - 1.0
+    far = np.maximum(np.maximum(start, goal), hi[:2]) + 1.0
+    shape = np.ceil((far - corner) / ROUTE_CELL).astype(int) + 1
+    axes = [corner[k] + ROUTE_CELL * np.arange(shape[k]) for k in (0, 1)]
+    gx, gy = np.meshgrid(*axes, indexing="ij")
+    cells = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    gap = np.minimum(
+        _box_distance_xy(cells, lo[:2], hi[:2]),
+        np.min(np.linalg.norm(cells[:, None] - door[None], axis=2), axis=1),
+    ).reshape(shape)
+    free = gap >= clearance
+    # a cell inside the berth costs up to 20 cells more, the nearer the more
+    toll = 1.0 + 20.0 * np.clip((berth - gap) / max(berth - clearance, 1e-6), 0.0, 1.0) ** 2
+
+    def cell(p: np.ndarray) -> tuple[int, int]:
+        i, j = np.clip(np.round((p - corner) / ROUTE_CELL).astype(int), 0, shape - 1)
+        return int(i), int(j)
+
+    s, g = cell(start), cell(goal)
+    if not free[g]:
+        return None
+    dist = {s: 0.0}
+    prev = {s: s}
+    heap = [(0.0, s)]
+    moves = [
+        (di, dj, float(np.hypot(di, dj))) for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj
+    ]
+    while heap:
+        d, c = heapq.heappop(heap)
+        if c == g:
+            break
+        if d > dist[c]:
+            continue
+        for di, dj, step in moves:
+            n = (c[0] + di, c[1] + dj)
+            if not (0 <= n[0] < shape[0] and 0 <= n[1] < shape[1]):
+                continue
+            if not free[n] and gap[n] <= gap[c]:
+                continue
+            nd = d + step * toll[n]
+            if nd < dist.get(n, np.inf):
+                dist[n], prev[n] = nd, c
+                heapq.heappush(heap, (nd, n))
+    if g not in prev:
+        return None
+    path = [g]
+    while path[-1] != s:
+        path.append(prev[path[-1]])
+    pts = corner + ROUTE_CELL * np.asarray(path[::-1], dtype=float)
+    pts[0], pts[-1] = start, goal
+
+    def gap_at(q: np.ndarray) -> np.ndarray:
+        near = np.min(np.linalg.norm(q[:, None] - door[None], axis=2), axis=1)
+        return np.minimum(_box_distance_xy(q, lo[:2], hi[:2]), near)
+
+    # shortcuts: from each waypoint straight to the furthest later one the straight
+    # leg reaches no nearer the object or the door than the path it replaces
+    along = gap_at(pts)
+    keep, k = [0], 0
+    while k < len(pts) - 1:
+        for m in range(len(pts) - 1, k, -1):
+            n = max(2, int(np.ceil(np.linalg.norm(pts[m] - pts[k]) / (ROUTE_CELL / 2))))
+            leg = pts[k] + np.linspace(0.0, 1.0, n)[:, None] * (pts[m] - pts[k])
+            if m == k + 1 or gap_at(leg).min() >= min(berth, along[k : m + 1].min()) - 1e-9:
+                keep.append(m)
+                k = m
+                break
+    return pts[keep]

@@ -31,6 +31,15 @@ opening path is reachable and started the arm at the pre-grasp (:mod:`tasks.plac
    plan (switch fraction, pusher orientation) is chosen by inverse kinematics from
    the robot's actual pose (:func:`tasks.placement.best_push_plan`, which the
    placement also ranks bases by);
+4c. a side door still short of the goal but ajar after those pushes is pushed on
+   from inside from another stand: the robot lets go, draws the hand in over its
+   base, and the base moves, as a mobile base would, to a stand in front of the
+   opening (:func:`tasks.placement.push_stand`, chosen by inverse kinematics, clear
+   of what the door sweeps from there) along a route that keeps clear of the object
+   and the door (:func:`tasks.placement.base_route`), 3 cm and 0.06 rad per control
+   step; the arm then presses the inner face on. A door whose pressing point swings
+   round the object's corner takes up to three such stands (``restand_max``; each
+   adds ``restand_steps`` to the step budget);
 5. hold still until the success flag holds (the part must be nearly still); a part
    that stalls already past the goal fraction is held there (a lid let go falls shut).
 
@@ -78,9 +87,11 @@ from tasks.placement import (
     PUSH_TILTS,
     READY_TCP,
     PandaReach,
+    base_route,
     best_push_plan,
     grasp_score,
     hinge_frame_link,
+    push_stand,
     push_steps,
     push_waypoints_link,
 )
@@ -90,6 +101,7 @@ log = logging.getLogger(__name__)
 POS_STEP = 0.1  # metres per unit action (pd_ee_delta_pose of ManiSkill's Panda)
 ROT_STEP = -0.1  # radians per unit action: ManiSkill scales rotations by rot_lower (= -0.1)
 GRIPPER_OPEN, GRIPPER_CLOSED = 1.0, -1.0
+TUCK_TCP = np.array([0.2, 0.0, 0.75])  # tcp in the robot base frame while the base drives
 
 
 @dataclass
@@ -126,6 +138,15 @@ class SolverConfig:
     push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
     push_out_clearance: float = 0.25  # m in front of it the hand first backs straight out to
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
+    # a door the arm cannot push on from its stand: the base moves once (as a mobile
+    # base would) to a second stand in front of the opening and pushes from inside
+    restand: bool = True
+    restand_first: bool = False  # the second stand before any push from the first
+    restand_gain: float = 0.08  # open fraction a stand's push must add, else none is taken
+    restand_max: int = 3  # stands after the first at most
+    restand_steps: int = 200  # control steps each further stand adds to the budget
+    drive_step: float = 0.03  # m the base moves per control step
+    drive_turn: float = 0.06  # rad the base turns per control step
     ik_check: bool = True  # shrink steps the arm controller's IK cannot follow
     twist_escape: bool = True  # holding at a wrist singularity: turn the hand about the bar
     pinch_retry: bool = True  # a grasp stopped short of the handle: again along the bar
@@ -143,6 +164,7 @@ class SolveResult:
     phase: str  # last phase reached: pregrasp, approach, grasp, move, hold
     reason: str = ""
     trace: list[dict[str, Any]] = field(default_factory=list, repr=False)  # if config.trace
+    stands: int = 0  # stands the base moved to after the first (the restand step)
 
 
 def _pose_matrix(raw: Any) -> np.ndarray:
@@ -379,16 +401,20 @@ class ScriptedSolver:
         frac,
         tilt: float,
         radial: float,
-    ) -> None:
+        inside: bool = False,
+    ) -> bool:
         """Let go of the handle, go round the free edge and push the inner face open
         (the pusher tilted by ``tilt``, pressing ``radial`` x the handle's radius from the
-        hinge, see :func:`tasks.placement.push_waypoints_link`)."""
+        hinge, see :func:`tasks.placement.push_waypoints_link`). ``inside``: the hand is
+        free, in front of the opening (after :meth:`_restand`), and comes to the inner
+        face from there. Returns whether the approach was abandoned (it knocked the part
+        back by ``push_max_loss``)."""
         cfg = self.cfg
         _, radial_l, normal_l, _ = hinge_frame_link(part)
         depth = self._inner_face_depth(normal_l)
         edge = self._part_extent(radial_l)
         waypoints = push_waypoints_link(
-            part, tilt, depth, cfg.push_clearance, cfg.push_edge_clearance, edge, radial
+            part, tilt, depth, cfg.push_clearance, cfg.push_edge_clearance, edge, radial, inside
         )
 
         def nearest(poses: list) -> np.ndarray:
@@ -408,7 +434,7 @@ class ScriptedSolver:
         self._go(lambda: turned, GRIPPER_CLOSED, do, budget=15, rot_tol=0.1)
         log.debug("push: tilt %.2f, turned to %.2f rad off", tilt, self._errors(turned)[1])
         backed_off = self._errors(back)[0] < 0.04
-        if backed_off and self._errors(turned)[1] > cfg.push_turn_tol:
+        if not inside and backed_off and self._errors(turned)[1] > cfg.push_turn_tol:
             # the arm, stretched along the pulled handle, cannot turn the hand there (a
             # joint at its limit): turn it at the ready pose's tcp, where the arm is most
             # dexterous, on its way round (the hand is then the wrong way round in front
@@ -449,7 +475,7 @@ class ScriptedSolver:
                 self._go(lambda T=T: self._link() @ T, GRIPPER_CLOSED, guarded, budget=25)
         except _PushDone:
             log.debug("push approach opened the part to %.3f", frac())
-            return
+            return False
         except _PushAborted:
             # going round the free edge swept the part shut: back off, keep what is left
             log.debug("push approach closed the part (%.3f -> %.3f); aborting", start, frac())
@@ -458,7 +484,7 @@ class ScriptedSolver:
             away[:3, 3] -= away[:3, 2] * 0.08
             for _ in range(10):
                 do(self._action(away, GRIPPER_CLOSED))
-            return
+            return True
         self._phase = "push"
         # 4. push: the pressing pose carried a little further along the hinge circle;
         # once the arm cannot turn the hand any further (a wrist joint at its limit),
@@ -469,7 +495,7 @@ class ScriptedSolver:
         last_tcp = self._tcp()
         while True:
             f = frac()
-            if f >= target or self._step >= cfg.max_steps - cfg.hold_steps:
+            if f >= target or self._step >= self._max_steps - cfg.hold_steps:
                 break
             history.append(f)
             tcp = self._tcp()
@@ -487,6 +513,116 @@ class ScriptedSolver:
             if not follow_rotation:
                 goal[:3, :3] = tcp[:3, :3]
             do(self._action(goal, GRIPPER_CLOSED))
+        return False
+
+    def _push_from_stands(
+        self, part: Any, target: float, axis: np.ndarray, do, frac, depth: float
+    ) -> int:
+        """Push the door on from further stands (:meth:`_restand`), up to ``restand_max``
+        of them, while it is short of the goal; returns how many were taken."""
+        cfg, u = self.cfg, self.u
+        taken = 0
+        while taken < cfg.restand_max and frac() < u.open_goal + cfg.goal_margin:
+            tilt = self._restand(part, do, frac, depth, target)
+            if tilt is None:
+                break
+            taken += 1
+            self._stands += 1
+            self._push_open(part, target, axis, do, frac, tilt, cfg.push_radial, True)
+        return taken
+
+    def _restand(self, part: Any, do, frac, depth: float, target: float) -> float | None:
+        """Move the robot's base, as a mobile base would, to another stand in front of
+        the opening from which the arm pushes the door's inner face on toward ``target``
+        (:func:`tasks.placement.push_stand`): let go, draw the hand in over the base and
+        drive along a route clear of the object and the door
+        (:func:`tasks.placement.base_route`), ``drive_step`` and ``drive_turn`` per
+        control step. Returns the pusher's tilt, or None (no stand from which the push
+        adds ``restand_gain``, or no route: the robot stays where it is)."""
+        import torch
+        from mani_skill.utils.structs.pose import Pose
+
+        from sim_envs.scene import yaw_quat
+
+        cfg = self.cfg
+        reach, base, yaw, _ = self._reach_model()
+        bounds = self.u.episode_assets[0].bounds
+        fraction = frac()
+        stand = push_stand(reach, part, bounds, fraction, depth, end=min(target + 0.04, 1.0))
+        if stand is None or stand[2] < fraction + cfg.restand_gain:
+            log.debug("no further stand (%s)", None if stand is None else round(stand[2], 2))
+            return None
+        goal, goal_yaw, _, tilt = stand
+        route = base_route(part, bounds, fraction, base, goal)
+        if route is None:
+            log.debug("no route to the second stand")
+            return None
+        self._max_steps += cfg.restand_steps
+        # let go, back out of the face and draw the hand in over the base
+        self._phase = "restand:let-go"
+        for waypoint in self._let_go_waypoints(part, do):
+            self._go(lambda w=waypoint: w, GRIPPER_CLOSED, do, tol=0.03, budget=30)
+        # drive: along the route's legs, the height and heading turned evenly on the way
+        self._phase = "restand:drive"
+        legs = np.diff(route, axis=0)
+        length = float(np.linalg.norm(legs, axis=1).sum())
+        turn = float(np.angle(np.exp(1j * (goal_yaw - yaw))))
+        n = max(1, int(np.ceil(max(length / cfg.drive_step, abs(turn) / cfg.drive_turn))))
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(legs, axis=1))])
+        obj = _pose_matrix(_np(self.u.object.pose.raw_pose)[0])
+        obj_yaw = float(np.arctan2(obj[1, 0], obj[0, 0]))
+        hold = np.zeros(7)
+        hold[6] = GRIPPER_CLOSED
+        for k in range(1, n + 1):
+            t = k / n
+            xy = np.array([np.interp(t * length, cum, route[:, i]) for i in (0, 1)])
+            p = np.append(xy, (1 - t) * base[2] + t * goal[2])
+            world = obj[:3, :3] @ p + obj[:3, 3]
+            q = yaw_quat(torch.tensor([obj_yaw + yaw + t * turn], dtype=torch.float32))
+            self.u.agent.robot.set_pose(
+                Pose.create_from_pq(p=torch.tensor(world[None], dtype=torch.float32), q=q)
+            )
+            do(hold)
+        log.debug("another stand: %.2f m, %.2f rad in %d steps; tilt %.2f", length, turn, n, tilt)
+        return tilt
+
+    def _let_go_waypoints(self, part: Any, do) -> list[np.ndarray]:
+        """Open the fingers where the hand is, then the tcp poses (world) that take it,
+        without sweeping the door, to ``TUCK_TCP`` over the base: straight out of the
+        door's outer face first when it is on that side (it was holding the handle),
+        round the free edge when the way to the base crosses the door."""
+        cfg = self.cfg
+        here = self._tcp()
+        for _ in range(4):
+            do(self._action(here, GRIPPER_OPEN))
+        L = self._link()
+        axis_l, radial_l, normal_l, _ = hinge_frame_link(part)
+        a_w, r_w, n_w = (L[:3, :3] @ v for v in (axis_l, radial_l, normal_l))
+        hinge = L[:3, 3]
+        out: list[np.ndarray] = []
+        hand = self._tcp()
+        side = float(n_w @ (hand[:3, 3] - hinge))
+        if side > -0.02:  # at the outer face
+            hand[:3, 3] += n_w * max(cfg.push_out_clearance - side, 0.0)
+            out.append(hand.copy())
+        tucked = hand.copy()
+        tucked[:3, 3] = self._base()[:3, :3] @ TUCK_TCP + self._base()[:3, 3]
+        p0, p1 = hand[:3, 3], tucked[:3, 3]
+        s0, s1 = float(n_w @ (p0 - hinge)), float(n_w @ (p1 - hinge))
+        edge = self._part_extent(radial_l)
+        if s0 * s1 < 0:
+            crossing = p0 + s0 / (s0 - s1) * (p1 - p0)
+            if r_w @ (crossing - hinge) < edge + cfg.push_edge_clearance:
+                round_edge = hand.copy()
+                round_edge[:3, 3] = (
+                    hinge
+                    + a_w * (a_w @ (p0 - hinge))
+                    + r_w * (edge + 2 * cfg.push_edge_clearance)
+                    + n_w * np.sign(s0) * cfg.push_edge_clearance
+                )
+                out.append(round_edge)
+        out.append(tucked)
+        return out
 
     def _reach_model(self) -> tuple[PandaReach, np.ndarray, float, np.ndarray]:
         """The arm's kinematics (for planning), the robot base's position and yaw in the
@@ -535,13 +671,14 @@ class ScriptedSolver:
         return tilt
 
     def _inner_face_depth(self, normal_link: np.ndarray) -> float:
-        """How far (m) the target part's collision shapes reach behind its hinge plane."""
-        return self._part_extent(-normal_link)
+        """How far (m) the target part's collision shapes reach behind its hinge plane
+        (negative: the inner face is in front of it, a hinge set back inside the body)."""
+        return self._part_extent(-normal_link, floor=-np.inf)
 
-    def _part_extent(self, direction_link: np.ndarray) -> float:
-        """How far (m, >= 0) the target part's collision shapes reach from its link
-        origin along ``direction_link`` (e.g. the radial: the free edge's distance)."""
-        depth = 0.0
+    def _part_extent(self, direction_link: np.ndarray, floor: float = 0.0) -> float:
+        """How far (m, >= ``floor``) the target part's collision shapes reach from its
+        link origin along ``direction_link`` (e.g. the radial: the free edge's distance)."""
+        depth = floor
         for shape in self.u.target_link._objs[0].get_collision_shapes():
             verts = getattr(shape, "vertices", None)
             if verts is None:
@@ -551,7 +688,7 @@ class ScriptedSolver:
             v = np.asarray(verts, dtype=float) * np.asarray(shape.scale, dtype=float)
             v = v @ R.T + np.asarray(pose.p, dtype=float)
             depth = max(depth, float((v @ direction_link).max()))
-        return depth
+        return depth if np.isfinite(depth) else 0.0
 
     def _gravity_torque(self) -> float:
         """Gravity's torque (N m) on the target part about its joint axis, positive = opening."""
@@ -580,6 +717,8 @@ class ScriptedSolver:
         step = 0
         info: dict[str, Any] = {}
         self.trace: list[dict[str, Any]] = []
+        self._max_steps = cfg.max_steps
+        self._stands = 0
         self._twists, self._grip_axis = 0, None
         phase = self._phase = "pregrasp"
 
@@ -587,7 +726,7 @@ class ScriptedSolver:
             return float(_np(u.open_fraction())[0])
 
         def steps_left() -> int:  # before the final hold
-            return cfg.max_steps - cfg.hold_steps - step
+            return self._max_steps - cfg.hold_steps - step
 
         def do(action: np.ndarray) -> dict:
             nonlocal step, info
@@ -719,7 +858,7 @@ class ScriptedSolver:
             history: list[float] = []
             follow_rotation = True
             last_tcp = self._tcp()
-            while step < cfg.max_steps - cfg.hold_steps:
+            while step < self._max_steps - cfg.hold_steps:
                 f = frac()
                 if (f <= target) if closing else (f >= pull_to):
                     break
@@ -808,10 +947,18 @@ class ScriptedSolver:
             elif frac() * part.range >= cfg.push_min_angle:
                 phase = self._phase = "push"
                 g_final = GRIPPER_CLOSED
-                if switch is None or frac() < switch - 0.1:  # stalled before the plan's switch
-                    tilt = self._push_tilt(part, frac(), face_depth)
-                self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_radial)
-                if frac() < u.open_goal + cfg.goal_margin and steps_left() >= cfg.push_retry_steps:
+                stood = 0
+                if cfg.restand and cfg.restand_first:
+                    stood = self._push_from_stands(part, target, axis_obj, do, frac, face_depth)
+                if not stood:
+                    if switch is None or frac() < switch - 0.1:  # stalled before the switch
+                        tilt = self._push_tilt(part, frac(), face_depth)
+                    self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_radial)
+                if (
+                    not stood
+                    and frac() < u.open_goal + cfg.goal_margin
+                    and steps_left() >= cfg.push_retry_steps
+                ):
                     # stalled short (the arm at a joint limit): push again from here
                     # with the pusher held another way, nearer the hinge (the hand
                     # travels less for the same swing)
@@ -819,6 +966,9 @@ class ScriptedSolver:
                     tilt = self._push_tilt(part, frac(), face_depth, others)
                     log.debug("push stalled at %.3f; again with tilt %.2f", frac(), tilt)
                     self._push_open(part, target, axis_obj, do, frac, tilt, cfg.push_retry_radial)
+                if cfg.restand and not stood and frac() * part.range >= cfg.push_min_angle:
+                    # still short, out of the arm's reach from here: further stands
+                    stood = self._push_from_stands(part, target, axis_obj, do, frac, face_depth)
         # 5. hold still (keep the grasp, or the pushing paddle) until the part settles
         phase = self._phase = "hold"
         hold = self._tcp()
@@ -835,6 +985,7 @@ class ScriptedSolver:
             phase=phase,
             reason=reason,
             trace=self.trace,
+            stands=self._stands,
         )
 
 
@@ -854,6 +1005,7 @@ class PartCheck:
     final_fraction: float
     seconds: float
     reason: str = ""
+    stands: int = 0  # further stands the robot's base moved to (0: opened where it stood)
 
 
 def solve_part(
@@ -913,6 +1065,7 @@ def check_tasks(
                     res.final_fraction,
                     time.perf_counter() - t0,
                     res.reason,
+                    res.stands,
                 )
             except Exception as e:  # a broken asset is a failed check, not a crash
                 log.exception("check of %s/%s failed", rec.id, part.name)
@@ -941,5 +1094,6 @@ def summarize(results: list[PartCheck]) -> dict[str, Any]:
         "parts": n,
         "opened": ok,
         "rate": ok / n if n else 0.0,
+        "opened_where_placed": sum(r.success and not r.stands for r in results),
         "failed": [asdict(r) for r in results if not r.success],
     }

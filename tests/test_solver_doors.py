@@ -156,6 +156,125 @@ def test_follow_keeps_the_hand_the_same_way_round(wide_fridge) -> None:
     assert reach.follow(base, yaw, [[flipped, ready], [near, far]], q0=q)[0] == 0.5
 
 
+def _reach_for(record, part: str):
+    """The task's Panda kinematics (:class:`tasks.placement.PandaReach`) from an env."""
+    import gymnasium as gym
+
+    from sim_envs.asset_sources import ListSource
+    from tasks.articulated import READY_QPOS
+    from tasks.placement import PandaReach
+
+    env = gym.make(
+        "OpenDoor-v0",
+        assets=ListSource([record.folder]),
+        target_part=part,
+        obs_mode="state",
+        control_mode="pd_ee_delta_pose",
+        sim_backend="physx_cpu",
+        render_backend="none",
+    )
+    try:
+        env.reset(seed=0)
+        u = env.unwrapped
+        return PandaReach(u.agent.robot._objs[0], u.agent.ee_link_name, READY_QPOS)
+    finally:
+        env.close()
+
+
+def _polyline(route: np.ndarray, step: float = 0.01) -> np.ndarray:
+    """Points every ``step`` metres along a route's legs."""
+    pts = [route[0]]
+    for a, b in zip(route[:-1], route[1:], strict=True):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        pts += [a + (b - a) * k / n for k in range(1, n + 1)]
+    return np.asarray(pts)
+
+
+def test_base_route_goes_round_the_open_door(wide_fridge) -> None:
+    """From in front of the opening (the door's inner side) to its outer side, the
+    straight way crosses the door: the route goes round its free edge, keeping the base
+    column's clearance from the door and the object all the way; with nothing between,
+    it is the straight line; a goal inside the object has no route."""
+    from tasks.placement import (
+        BASE_CLEARANCE,
+        _box_distance_xy,
+        _swept_points,
+        base_route,
+        hinge_frame_link,
+        link_pose,
+    )
+
+    part = next(p for p in wide_fridge.movable_parts() if p.name == WIDE_FRIDGE[2])
+    lo, hi = (np.asarray(b, dtype=float) for b in wide_fridge.bounds)
+    fraction = 0.6
+    _, r, n, radius = hinge_frame_link(part)
+    L = link_pose(part, fraction)
+    hinge, r_w, n_w = L[:3, 3], L[:3, :3] @ r, L[:3, :3] @ n
+    mid = hinge + r_w * 0.9 * radius
+    start, goal = (mid - n_w * 0.5)[:2], (mid + n_w * 0.5)[:2]
+    door = _swept_points(part, wide_fridge.bounds, fraction, fraction)[:, :2]
+    assert _box_distance_xy(start[None], lo[:2], hi[:2])[0] >= BASE_CLEARANCE  # the case
+    route = base_route(part, wide_fridge.bounds, fraction, start, goal)
+    assert route is not None and np.allclose(route[0], start) and np.allclose(route[-1], goal)
+    pts = _polyline(route)
+    gap_door = np.linalg.norm(pts[:, None] - door[None], axis=2).min(axis=1)
+    gap_box = _box_distance_xy(pts, lo[:2], hi[:2])
+    assert gap_door.min() >= BASE_CLEARANCE - 0.04  # (the grid's half diagonal)
+    assert gap_box.min() >= BASE_CLEARANCE - 0.04
+    assert ((pts - hinge[:2]) @ r_w[:2]).max() > radius  # round the free edge
+    # nothing between: straight
+    ahead = np.array([hi[0] + 2.0, lo[1] - 0.5]), np.array([hi[0] + 2.0, hi[1] + 0.5])
+    straight = base_route(part, wide_fridge.bounds, 0.0, *ahead)
+    assert straight is not None and len(straight) == 2
+    inside = 0.5 * (lo[:2] + hi[:2])
+    assert base_route(part, wide_fridge.bounds, fraction, start, inside) is None
+
+
+def test_push_stand_faces_the_inner_face(wide_fridge) -> None:
+    """A further stand for a door half open stands behind the door's plane, clear of
+    what the door sweeps while pushed, and its arm follows the push on past where the
+    door is, to the goal; a door on a horizontal hinge (its inner side is under it) gets none."""
+    import dataclasses
+
+    from tasks.placement import (
+        BASE_CLEARANCE,
+        PUSH_STAND_BACK,
+        _swept_points,
+        hinge_frame_link,
+        link_pose,
+        push_stand,
+    )
+
+    part = next(p for p in wide_fridge.movable_parts() if p.name == WIDE_FRIDGE[2])
+    reach = _reach_for(wide_fridge, WIDE_FRIDGE[2])
+    fraction = 0.45
+    stand = push_stand(reach, part, wide_fridge.bounds, fraction, depth=0.04, end=0.85)
+    assert stand is not None
+    base, _, reached, _ = stand
+    assert reached >= 0.75  # the task's goal, from less than half open
+    _, _, n, _ = hinge_frame_link(part)
+    L = link_pose(part, fraction)
+    assert (base - L[:3, 3]) @ (L[:3, :3] @ n) < -PUSH_STAND_BACK
+    swept = _swept_points(part, wide_fridge.bounds, reached, fraction)
+    assert np.linalg.norm(swept[:, :2] - base[:2], axis=1).min() >= BASE_CLEARANCE
+    lid = dataclasses.replace(part, axis=(0.0, 1.0, 0.0))
+    assert push_stand(reach, lid, wide_fridge.bounds, fraction) is None
+
+
+@pytest.mark.slow
+def test_solver_pushes_a_wide_door_from_a_second_stand(wide_fridge) -> None:
+    """With the second stand taken before any push from the first (``restand_first``),
+    the robot pulls the wide door ajar, lets go, its base drives to a stand in front of
+    the opening without touching the door, and the arm pushes the inner face on to the
+    goal from there, in CPU simulation."""
+    res, trace = _solve_door(wide_fridge, WIDE_FRIDGE[2], restand_first=True)
+    phases = [t["phase"] for t in trace]
+    assert "restand:drive" in phases and "push:edge" not in phases, sorted(set(phases))
+    drive = [t["fraction"] for t in trace if t["phase"] == "restand:drive"]
+    assert max(drive) - min(drive) < 0.01  # the base drove clear of the door
+    assert res.success and res.stands >= 1, res
+
+
 # a fridge door whose pull passes a wrist singularity (joint 5 through 0) at 0.75 open
 SINGULAR_FRIDGE = ("refrigerator", 303, "door_0")
 
@@ -170,7 +289,8 @@ def test_twist_escape_pulls_through_a_wrist_singularity(singular_fridge) -> None
     short of the goal (the controller's IK converges for no shortened step); with it the
     hand turns a little about the bar and the pull alone opens the door."""
     part = SINGULAR_FRIDGE[2]
-    stuck, stuck_trace = _solve_door(singular_fridge, part, twist_escape=False)
+    # (without moving the base: from another stand the push gets there too)
+    stuck, stuck_trace = _solve_door(singular_fridge, part, twist_escape=False, restand=False)
     assert not stuck.success and stuck_trace[-1]["twists"] == 0, stuck
     res, trace = _solve_door(singular_fridge, part)
     assert res.success, res
