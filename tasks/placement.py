@@ -126,7 +126,7 @@ PUSH_END = 0.9  # of the range: how far a planned push must reach
 PUSH_MARGIN = 0.35
 PUSH_FREE_EDGE = 1.12  # the free edge's distance from the hinge, guessed from the handle's
 PUSH_INSIDE_APPROACH = 0.12  # m behind the pressing point a hand coming from inside stops
-PUSH_STAND_BACK = 0.35  # m a second stand keeps behind the door's plane (room for the hand)
+PUSH_STAND_BACK = 0.35  # m another stand keeps behind the door's plane (room for the hand)
 
 
 def push_waypoints_link(
@@ -528,9 +528,9 @@ def _candidate_bases(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid of bases (C, 3) in the object frame, their yaws (C,) toward the middle of
     ``path`` and heuristic costs (C,; inf: the base column hits the object or the door
-    swept from ``swept_start`` up to ``swept_end`` of its range): ``path`` points (K, 3) within comfortable
-    reach of the shoulder, the gripper, pointing along ``approach`` (K, 3) at each,
-    reaching away from the body. ``high``: also bases up to 0.8 m above the path,
+    swept from ``swept_start`` up to ``swept_end`` of its range): ``path`` points (K, 3)
+    within comfortable reach of the shoulder, the gripper, pointing along ``approach``
+    (K, 3) at each, reaching away from the body. ``high``: also bases up to 0.8 m above the path,
     standing over the volume the door sweeps (a bottom-hinged door or a lid comes down
     in front of the object, under them)."""
     lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)

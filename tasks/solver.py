@@ -138,10 +138,10 @@ class SolverConfig:
     push_home_clearance: float = 0.1  # m in front of the door's outer face for that turn
     push_out_clearance: float = 0.25  # m in front of it the hand first backs straight out to
     goal_margin: float = 0.01  # a stalled part this far past the goal fraction is held there
-    # a door the arm cannot push on from its stand: the base moves once (as a mobile
-    # base would) to a second stand in front of the opening and pushes from inside
+    # a door the arm cannot push on from its stand: the base moves (as a mobile base
+    # would) to another stand in front of the opening and the arm pushes from inside
     restand: bool = True
-    restand_first: bool = False  # the second stand before any push from the first
+    restand_first: bool = False  # another stand before any push from the first
     restand_gain: float = 0.08  # open fraction a stand's push must add, else none is taken
     restand_max: int = 3  # stands after the first at most
     restand_steps: int = 200  # control steps each further stand adds to the budget
@@ -402,13 +402,12 @@ class ScriptedSolver:
         tilt: float,
         radial: float,
         inside: bool = False,
-    ) -> bool:
+    ) -> None:
         """Let go of the handle, go round the free edge and push the inner face open
         (the pusher tilted by ``tilt``, pressing ``radial`` x the handle's radius from the
         hinge, see :func:`tasks.placement.push_waypoints_link`). ``inside``: the hand is
         free, in front of the opening (after :meth:`_restand`), and comes to the inner
-        face from there. Returns whether the approach was abandoned (it knocked the part
-        back by ``push_max_loss``)."""
+        face from there."""
         cfg = self.cfg
         _, radial_l, normal_l, _ = hinge_frame_link(part)
         depth = self._inner_face_depth(normal_l)
@@ -475,7 +474,7 @@ class ScriptedSolver:
                 self._go(lambda T=T: self._link() @ T, GRIPPER_CLOSED, guarded, budget=25)
         except _PushDone:
             log.debug("push approach opened the part to %.3f", frac())
-            return False
+            return
         except _PushAborted:
             # going round the free edge swept the part shut: back off, keep what is left
             log.debug("push approach closed the part (%.3f -> %.3f); aborting", start, frac())
@@ -484,7 +483,7 @@ class ScriptedSolver:
             away[:3, 3] -= away[:3, 2] * 0.08
             for _ in range(10):
                 do(self._action(away, GRIPPER_CLOSED))
-            return True
+            return
         self._phase = "push"
         # 4. push: the pressing pose carried a little further along the hinge circle;
         # once the arm cannot turn the hand any further (a wrist joint at its limit),
@@ -513,7 +512,6 @@ class ScriptedSolver:
             if not follow_rotation:
                 goal[:3, :3] = tcp[:3, :3]
             do(self._action(goal, GRIPPER_CLOSED))
-        return False
 
     def _push_from_stands(
         self, part: Any, target: float, axis: np.ndarray, do, frac, depth: float
@@ -555,7 +553,7 @@ class ScriptedSolver:
         goal, goal_yaw, _, tilt = stand
         route = base_route(part, bounds, fraction, base, goal)
         if route is None:
-            log.debug("no route to the second stand")
+            log.debug("no route to another stand")
             return None
         self._max_steps += cfg.restand_steps
         # let go, back out of the face and draw the hand in over the base
