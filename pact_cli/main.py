@@ -628,14 +628,20 @@ def check_tasks_cmd(
     category: str = typer.Option(None, help="Category filter."),
     seed: int = typer.Option(0, help="Seed of the episode resets."),
     out: Path = typer.Option(None, help="Write the per-part results as JSON here."),
+    fixed_base: bool = typer.Option(
+        False,
+        "--fixed-base",
+        help="Never move the robot's base to another stand (a fixed Panda, as in the RL tasks).",
+    ),
 ) -> None:
     """Can a robot really open each part? Runs the scripted solver on every movable part."""
     import json
     from dataclasses import asdict
 
-    from tasks.solver import check_tasks, summarize
+    from tasks.solver import SolverConfig, check_tasks, summarize
 
-    results = check_tasks(path, seed=seed, category=category)
+    config = SolverConfig(restand=not fixed_base)
+    results = check_tasks(path, seed=seed, category=category, config=config)
     if not results:
         console.print(
             f"[red]{path}: no movable parts to check[/red] (no built assets there, none of "

@@ -131,6 +131,34 @@ def test_check_tasks_says_when_there_is_nothing_to_check(tmp_path: Path) -> None
     assert "0 of 0" not in result.output
 
 
+def test_check_tasks_fixed_base_keeps_the_robot_where_the_env_put_it(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """``--fixed-base`` runs the solver without other stands (``restand=False``); by
+    default the base may move, and the report counts the stands and the parts opened
+    where the robot was placed."""
+    import tasks.solver as solver
+
+    seen = []
+
+    def fake_check_tasks(path, seed=0, category=None, config=None):
+        seen.append(config.restand)
+        stands = 0 if not config.restand else 2
+        return [solver.PartCheck("fridge_x", "door_0", "revolute", "OpenDoor-v0", True, 300,
+                                 0.8, 1.0, "", stands)]  # fmt: skip
+
+    monkeypatch.setattr(solver, "check_tasks", fake_check_tasks)
+    out = tmp_path / "checks.json"
+    r = runner.invoke(app, ["check-tasks", str(tmp_path), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "0 without moving the robot's base" in r.output
+    assert json.loads(out.read_text())["results"][0]["stands"] == 2
+    r = runner.invoke(app, ["check-tasks", str(tmp_path), "--fixed-base"])
+    assert r.exit_code == 0, r.output
+    assert "1 without moving the robot's base" in r.output
+    assert seen == [True, False]
+
+
 def test_convert_uses_pact_by_default(tmp_path):
     images = tmp_path / "in"
     images.mkdir()
