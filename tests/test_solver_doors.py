@@ -106,56 +106,6 @@ def test_candidate_bases_must_reach_the_closed_handle(wide_fridge) -> None:
     assert (first > FIRST_GRASP_REACH).sum() > 0
 
 
-def test_follow_keeps_the_hand_the_same_way_round(wide_fridge) -> None:
-    """A hand holding a bar cannot turn over on it: a path whose first step is reachable
-    only with the fingers one way round and whose second only the other way round is
-    followed one step (half), not both by flipping the hand between them; with the hand
-    already holding (``q0``) the way round it holds is followed."""
-    import gymnasium as gym
-
-    from sim_envs.asset_sources import ListSource
-    from tasks.articulated import READY_QPOS
-    from tasks.placement import PandaReach
-
-    env = gym.make(
-        "OpenDoor-v0",
-        assets=ListSource([wide_fridge.folder]),
-        target_part=WIDE_FRIDGE[2],
-        obs_mode="state",
-        control_mode="pd_ee_delta_pose",
-        sim_backend="physx_cpu",
-        render_backend="none",
-    )
-    try:
-        env.reset(seed=0)
-        u = env.unwrapped
-        reach = PandaReach(u.agent.robot._objs[0], u.agent.ee_link_name, READY_QPOS)
-    finally:
-        env.close()
-    reach.model.compute_forward_kinematics(np.asarray(READY_QPOS, dtype=float))
-    pose = reach.model.get_link_pose(reach.tcp)
-    from scipy.spatial.transform import Rotation
-
-    ready = np.eye(4)  # the ready tcp in the root frame (= object frame: base 0, yaw 0)
-    w, x, y, z = pose.q
-    ready[:3, :3] = Rotation.from_quat([x, y, z, w]).as_matrix()
-    ready[:3, 3] = pose.p
-    near = ready.copy()
-    near[:3, 3] += [0.02, 0.0, 0.0]
-    far = ready.copy()
-    far[:3, 3] += [5.0, 0.0, 0.0]  # out of reach
-    base, yaw = np.zeros(3), 0.0
-    fraction, start = reach.follow(base, yaw, [[ready, far], [far, near]], standoff=0.05)
-    assert fraction == 0.5 and start is not None
-    assert reach.follow(base, yaw, [[ready, far], [near, far]], standoff=0.05)[0] == 1.0
-    # holding already, the ready hand's way round: its plan, whatever the other would do
-    q = np.asarray(READY_QPOS, dtype=float)
-    assert reach.follow(base, yaw, [[ready, far], [near, far]], q0=q)[0] == 1.0
-    flipped = ready.copy()
-    flipped[:3, :2] *= -1  # the fingers the other way round (a half turn about z)
-    assert reach.follow(base, yaw, [[flipped, ready], [near, far]], q0=q)[0] == 0.5
-
-
 def _reach_for(record, part: str):
     """The task's Panda kinematics (:class:`tasks.placement.PandaReach`) from an env."""
     import gymnasium as gym
@@ -179,6 +129,38 @@ def _reach_for(record, part: str):
         return PandaReach(u.agent.robot._objs[0], u.agent.ee_link_name, READY_QPOS)
     finally:
         env.close()
+
+
+def test_follow_keeps_the_hand_the_same_way_round(wide_fridge) -> None:
+    """A hand holding a bar cannot turn over on it: a path whose first step is reachable
+    only with the fingers one way round and whose second only the other way round is
+    followed one step (half), not both by flipping the hand between them; with the hand
+    already holding (``q0``) the way round it holds is followed."""
+    from tasks.articulated import READY_QPOS
+
+    reach = _reach_for(wide_fridge, WIDE_FRIDGE[2])
+    reach.model.compute_forward_kinematics(np.asarray(READY_QPOS, dtype=float))
+    pose = reach.model.get_link_pose(reach.tcp)
+    from scipy.spatial.transform import Rotation
+
+    ready = np.eye(4)  # the ready tcp in the root frame (= object frame: base 0, yaw 0)
+    w, x, y, z = pose.q
+    ready[:3, :3] = Rotation.from_quat([x, y, z, w]).as_matrix()
+    ready[:3, 3] = pose.p
+    near = ready.copy()
+    near[:3, 3] += [0.02, 0.0, 0.0]
+    far = ready.copy()
+    far[:3, 3] += [5.0, 0.0, 0.0]  # out of reach
+    base, yaw = np.zeros(3), 0.0
+    fraction, start = reach.follow(base, yaw, [[ready, far], [far, near]], standoff=0.05)
+    assert fraction == 0.5 and start is not None
+    assert reach.follow(base, yaw, [[ready, far], [near, far]], standoff=0.05)[0] == 1.0
+    # holding already, the ready hand's way round: its plan, whatever the other would do
+    q = np.asarray(READY_QPOS, dtype=float)
+    assert reach.follow(base, yaw, [[ready, far], [near, far]], q0=q)[0] == 1.0
+    flipped = ready.copy()
+    flipped[:3, :2] *= -1  # the fingers the other way round (a half turn about z)
+    assert reach.follow(base, yaw, [[flipped, ready], [near, far]], q0=q)[0] == 0.5
 
 
 def _polyline(route: np.ndarray, step: float = 0.01) -> np.ndarray:
