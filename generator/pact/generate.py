@@ -46,6 +46,7 @@ from generator.procedural.solids import box as solid_box
 
 from .articulation import (
     DOOR_HINGE,
+    DOOR_PANEL_DEPTH,
     ArticulationHead,
     aggregate_last,
     apply_category_prior,
@@ -402,9 +403,13 @@ class PActGenerator:
                 parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
             if self.shape_prior and hints.get("category") not in DOOR_HINGE:
-                # no side-hinged door as wide as a drawer, a door off the middle hinged at
-                # its outer edge (an appliance the user names: its category's rule knows)
+                # no side-hinged door as wide as a drawer, no drawer taller than wide, a
+                # door off the middle hinged at its outer edge (an appliance the user
+                # names: its category's rule knows)
+                drawn = pj.type
                 pj = apply_shape_prior(pj, lo, hi, obj_lo, obj_hi)
+                if drawn == "prismatic" and pj.type == "revolute":  # drawn as deep as a drawer
+                    meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
             if hints.get("category"):  # the user's category: how its doors hinge
                 pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
             pj = postprocess_joint(pj, lo, hi)
@@ -615,6 +620,27 @@ def clip_from_neighbours(
 #: A movable part's raw decoded mesh whose face (the two larger sides of its bulk box)
 #: covers less than this share of its clean mesh's face is not used for the box layout.
 RAW_FACE_SHARE = 0.5
+
+
+def door_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
+    """The front slab of a part's mesh, ``thickness`` deep along x, closed at its back and
+    coloured as the mesh: the door a part drawn as deep as a drawer becomes
+    (``articulation.DRAWER_MIN_ASPECT``). The mesh itself when the cut leaves nothing."""
+    x0 = float(mesh.bounds[1, 0]) - thickness
+    if x0 <= float(mesh.bounds[0, 0]):
+        return mesh
+    try:
+        slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0], cap=True)
+    except ValueError:  # the cap needs a closed cross-section
+        slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    if slab is None or len(slab.faces) == 0:
+        return mesh
+    visual = mesh.visual.to_color() if hasattr(mesh.visual, "to_color") else mesh.visual
+    colours = np.asarray(visual.vertex_colors)
+    slab.visual = trimesh.visual.ColorVisuals(
+        slab, vertex_colors=colours[cKDTree(mesh.vertices).query(slab.vertices)[1]]
+    )
+    return slab
 
 
 def _raw_face_lost(raw: trimesh.Trimesh | None, clean: trimesh.Trimesh | None) -> bool:
