@@ -310,8 +310,8 @@ def apply_shape_prior(
     oven's, a dishwasher's). Another door more than ``OFF_CENTRE`` off the object's
     middle is hinged at its edge nearer the object's side. A front 'drawer' narrower than
     ``DRAWER_MIN_ASPECT`` for its height and ``TALL_DOOR_HEIGHT`` of the object tall is a
-    door hinged at its edge nearer the object's side (the caller gives it a door's thickness, ``generate.door_panel``). Everything
-    else is left as it is."""
+    door hinged at its edge nearer the object's side (the caller gives it a door's
+    thickness, ``generate.door_panel``). Everything else is left as it is."""
     size = hi - lo
     front = hi[0] >= obj_hi[0] - 0.1
     if joint.type == "fixed" or joint.semantic == "lid" or not front or size[2] <= 0:

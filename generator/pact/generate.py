@@ -9,8 +9,10 @@ the stage-1 occupancy (``slat_vae.constrain_sdf``: one closed piece per connecte
 of the part's occupancy, no islands) -> ``part_cleaning.clean_mesh`` (the cleaning every
 generator's output gets) -> articulation head on the aggregated features (+ revolute
 origins projected onto the part's AABB surface; ``articulation.apply_shape_prior``: no
-side-hinged door as wide as a drawer, an oven's full-width door hinged at the bottom, a
-door off the middle hinged at its outer edge, off with ``shape_prior=False``; slots past the flow's, laid out from the mask, are voxel boxes
+side-hinged door as wide as a drawer, no drawer taller than wide (a door, cut to a
+door's thickness by ``door_panel``), an oven's full-width door hinged at the bottom, a
+door off the middle hinged at its outer edge, off with ``shape_prior=False``; slots past
+the flow's, laid out from the mask, are voxel boxes
 typed by ``articulation.joint_from_shape``) -> ``ArticulatedObject`` in the
 normalized frame (``scale`` None; a ``height`` hint in metres
 sets ``scale`` = height / the object's z extent). ``assemble`` returns that raw output
@@ -631,7 +633,7 @@ def door_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
         return mesh
     try:
         slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0], cap=True)
-    except ValueError:  # the cap needs a closed cross-section
+    except ValueError:  # the cap's triangulation failed (a degenerate cross-section)
         slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0])
     if slab is None or len(slab.faces) == 0:
         return mesh
