@@ -121,10 +121,12 @@ def main() -> None:
 
     parts: list[dict] = []
     if not args.no_solver:
-        from tasks.solver import check_tasks
+        from tasks.solver import check_tasks, summarize
 
         t = time.perf_counter()
-        for r in check_tasks(bundles, seed=args.seed):
+        results = check_tasks(bundles, seed=args.seed)
+        summary = summarize(results)
+        for r in results:
             parts.append(
                 {"asset": r.asset_id, "part": r.part, "opened": r.success,
                  "fraction": round(r.final_fraction, 3), "stands": 1 + r.stands,
@@ -162,13 +164,12 @@ def main() -> None:
         "failures": [r for r in rows if r.get("status") not in ("ok", "repaired")],
     }
     if not args.no_solver:
-        opened = sum(p["opened"] for p in parts)
         out.update(
-            parts=len(parts),
-            opened=opened,
-            opened_share=round(opened / len(parts), 3) if parts else None,
+            parts=summary["parts"],
+            opened=summary["opened"],
+            opened_share=round(summary["rate"], 3) if parts else None,
             # opened where the env placed the robot (no further stand)
-            opened_where_placed=sum(p["opened"] and p["stands"] == 1 for p in parts),
+            opened_where_placed=summary["opened_where_placed"],
             solver_seconds=round(solver_seconds, 1),
             parts_not_opened=[p for p in parts if not p["opened"]],
         )

@@ -26,7 +26,7 @@ def main() -> None:
     from sim import build_procedural
 
     from generator.procedural import CATEGORIES
-    from tasks.solver import check_tasks
+    from tasks.solver import check_tasks, summarize
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="runs/bench_solver")
@@ -49,7 +49,7 @@ def main() -> None:
         for key in (category, r.joint_type):
             by[key][0] += int(r.success)
             by[key][1] += 1
-    opened = sum(r.success for r in results)
+    summary = summarize(results)
     print(
         json.dumps(
             {
@@ -58,10 +58,10 @@ def main() -> None:
                 "per_category_and_seed": a.n,
                 "split": a.split,
                 "parts": len(results),
-                "opened": opened,
-                "rate": round(opened / max(1, len(results)), 4),
+                "opened": summary["opened"],
+                "rate": round(summary["rate"], 4),
                 # opened where the env placed the robot (no further stand)
-                "opened_where_placed": sum(r.success and not r.stands for r in results),
+                "opened_where_placed": summary["opened_where_placed"],
                 "by": {k: f"{v[0]}/{v[1]}" for k, v in sorted(by.items())},
                 "seconds_per_part": round(t_check / max(1, len(results)), 2),
                 "build_seconds": round(t_build, 1),

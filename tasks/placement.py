@@ -26,6 +26,7 @@ plane, clear of what the door sweeps from where it is) for pushing it on, and
 
 from __future__ import annotations
 
+import heapq
 from typing import Any
 
 import numpy as np
@@ -788,21 +789,21 @@ def base_route(
     The start may lie within the clearance (the arm was just pushing there): the route
     then leaves it only by cells that get further from the object and the door.
     """
-    import heapq
-
     lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
     start, goal = np.asarray(start, dtype=float)[:2], np.asarray(goal, dtype=float)[:2]
     door = _swept_points(part, bounds, fraction, fraction)[:, :2]
+
+    def gap_at(q: np.ndarray) -> np.ndarray:  # distance to the object's box or the door
+        near = np.min(np.linalg.norm(q[:, None] - door[None], axis=2), axis=1)
+        return np.minimum(_box_distance_xy(q, lo[:2], hi[:2]), near)
+
     corner = np.minimum(np.minimum(start, goal), lo[:2]) - 1.0
     far = np.maximum(np.maximum(start, goal), hi[:2]) + 1.0
     shape = np.ceil((far - corner) / ROUTE_CELL).astype(int) + 1
     axes = [corner[k] + ROUTE_CELL * np.arange(shape[k]) for k in (0, 1)]
     gx, gy = np.meshgrid(*axes, indexing="ij")
     cells = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    gap = np.minimum(
-        _box_distance_xy(cells, lo[:2], hi[:2]),
-        np.min(np.linalg.norm(cells[:, None] - door[None], axis=2), axis=1),
-    ).reshape(shape)
+    gap = gap_at(cells).reshape(shape)
     free = gap >= clearance
     # a cell inside the berth costs up to 20 cells more, the nearer the more
     toll = 1.0 + 20.0 * np.clip((berth - gap) / max(berth - clearance, 1e-6), 0.0, 1.0) ** 2
@@ -843,10 +844,6 @@ def base_route(
         path.append(prev[path[-1]])
     pts = corner + ROUTE_CELL * np.asarray(path[::-1], dtype=float)
     pts[0], pts[-1] = start, goal
-
-    def gap_at(q: np.ndarray) -> np.ndarray:
-        near = np.min(np.linalg.norm(q[:, None] - door[None], axis=2), axis=1)
-        return np.minimum(_box_distance_xy(q, lo[:2], hi[:2]), near)
 
     # shortcuts: from each waypoint straight to the furthest later one the straight
     # leg reaches no nearer the object or the door than the path it replaces

@@ -604,7 +604,8 @@ class ScriptedSolver:
             hand[:3, 3] += n_w * max(cfg.push_out_clearance - side, 0.0)
             out.append(hand.copy())
         tucked = hand.copy()
-        tucked[:3, 3] = self._base()[:3, :3] @ TUCK_TCP + self._base()[:3, 3]
+        base = self._base()
+        tucked[:3, 3] = base[:3, :3] @ TUCK_TCP + base[:3, 3]
         p0, p1 = hand[:3, 3], tucked[:3, 3]
         s0, s1 = float(n_w @ (p0 - hinge)), float(n_w @ (p1 - hinge))
         edge = self._part_extent(radial_l)
