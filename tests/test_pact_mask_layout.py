@@ -151,6 +151,22 @@ def test_layout_fits_the_depth_when_the_sample_has_it_clearly_wrong():
     assert cam.depth == 1.0
 
 
+def test_layout_takes_the_candidate_depth_that_explains_the_silhouette():
+    deep = np.zeros((3, 32, 32, 32), bool)  # the kept sample: as deep as it is wide
+    deep[0, 0:28, 0:32, 6:26] = True
+    deep[1, 28:32, 1:31, 16:25] = True
+    deep[2, 28:32, 1:31, 7:15] = True
+    # seen nearly level the free fit is not trusted, but of the samples' depths the chest's
+    # own (0.5) explains the silhouette clearly better than 1.0 or 2.0
+    level = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=35.0, elevation_deg=5.0)
+    _, cam = layout_from_mask(deep, level, [0, 1, 2], depths=[2.0, 0.5, 1.0])
+    assert cam.depth == 0.5
+    assert fit_box_camera(level, [2, 3], depth=[2.0, 0.5, 1.0]).depth == 0.5
+    # the same from the other side
+    mirrored = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=-40.0, elevation_deg=10.0)
+    assert fit_box_camera(mirrored, [2, 3], depth=[0.25, 0.5, 1.0, 2.0]).depth == 0.5
+
+
 def test_layout_carves_a_table_between_its_legs():
     legs = [
         ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)

@@ -16,12 +16,15 @@ the movable parts' pixels that fall on the box's front face (so the front is the
 the parts are on). A coarse grid of views and proportions, then a coordinate search from
 the best few. On the 76 real product renders of the dev split (DEVELOPERS.md) with the
 box's depth left free: azimuth within 4 degrees of the true camera's (median), elevation
-within 2, height over width within 8 %, depth over width within 18 % (a near-frontal
-view says little about depth, so :func:`layout_from_mask` takes the depth from the
-stage-1 sample and fits the rest; it fits the depth too when the camera looks down on
-the top by ``DEPTH_FREE_ELEVATION`` or more, the freed depth explains the silhouette
-clearly better, by ``DEPTH_FREE_GAIN`` of IoU, and the box turns by no more than
-``DEPTH_FREE_TURN`` for it).
+within 2, height over width within 8 %, depth over width within 18 %. A near-frontal
+view says little about depth, and the free depth comes out too shallow more often than
+not, so :func:`layout_from_mask` takes the depth from the stage-1 samples: each
+candidate's depth is fitted in turn, the rest free, and the one whose box explains the
+silhouette best is kept (on the real dev split's photos this is nearer the truth than the
+kept sample's own depth or the free fit's). It fits the depth freely when the camera
+looks down on the top by ``DEPTH_FREE_ELEVATION`` or more, the freed depth explains the
+silhouette clearly better, by ``DEPTH_FREE_GAIN`` of IoU, and the box turns by no more
+than ``DEPTH_FREE_TURN`` for it.
 
 :func:`layout_from_mask` then rebuilds the sample's part grids: the base is the box,
 carved where the camera sees background through it (a desk's kneehole, the space
@@ -33,6 +36,7 @@ inside the base's walls. Stage 2 then decodes these grids like any others.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -188,12 +192,18 @@ def _scores(
 def fit_box_camera(
     mask: np.ndarray,
     movable_ids: list[int] | tuple[int, ...],
-    depth: float | None = None,
+    depth: float | Sequence[float] | None = None,
     fovy: float = FOVY,
 ) -> BoxCamera:
     """The box and camera that best explain a part mask (H, W) (module docstring):
     ``movable_ids`` are the mask ids of the parts on the front; ``depth`` (the box's
-    depth over its width) is fitted too when None. Raises ValueError for an empty mask."""
+    depth over its width) is fitted too when None. Given several depths, each is fitted
+    and the fit with the highest silhouette IoU is returned: the parts-on-the-front share
+    is left out of that choice, since a shallower box's larger front holds the parts as
+    well. Raises ValueError for an empty mask."""
+    if depth is not None and np.ndim(depth) > 0:
+        fits = [fit_box_camera(mask, movable_ids, float(d), fovy) for d in np.unique(depth)]
+        return max(fits, key=lambda f: f.iou)
     mask = np.asarray(mask)
     sil = mask > 0
     if not sil.any():
@@ -256,6 +266,16 @@ def fit_box_camera(
     )
 
 
+def depth_ratio(occ: np.ndarray) -> float | None:
+    """Depth over width (x extent over y extent, in cells) of the union of part
+    occupancies (T, R, R, R); None when all are empty."""
+    cells = np.argwhere(np.asarray(occ, bool).any(axis=0))
+    if not len(cells):
+        return None
+    extent = np.ptp(cells, axis=0) + 1
+    return float(extent[0] / extent[1])
+
+
 def _read(image: np.ndarray, camera: BoxCamera, points: np.ndarray, outside) -> np.ndarray:
     """``image`` (H, W: the mask or the silhouette) at the pixels box-frame ``points``
     (N, 3) project to; ``outside`` where they fall out of the image."""
@@ -273,14 +293,17 @@ def layout_from_mask(
     slots: list[int],
     fovy: float = FOVY,
     fit_depth: bool = True,
+    depths: Sequence[float] | None = None,
 ) -> tuple[np.ndarray, BoxCamera] | None:
     """Part occupancies (T, R, R, R) rebuilt from a box and camera fitted to the part
     mask (module docstring), and that fit; None when the sample is empty, the mask shows
     no movable part or the fit's silhouette IoU is below ``MIN_FIT_IOU``. ``slots`` are
     the slots the mask shows (slot k <-> mask id k + 1; ids beyond the grids' slots count
-    as the base). The box's depth over width is the sample's (with ``fit_depth``, the
-    fitted one where the camera looks down on the top and that fits the silhouette
-    clearly better: module docstring); each movable part keeps its depth in the sample
+    as the base). The box's depth over width is the sample's or one of ``depths`` (the
+    other stage-1 candidates'), whichever explains the silhouette best (with
+    ``fit_depth``, the freely fitted one where the camera looks down on the top and that
+    fits the silhouette clearly better: module docstring); each movable part keeps its
+    depth in the sample
     (scaled with the box; the median of the others', or ``CARVE_DEPTH`` cells, for a
     part the sample left empty)."""
     occ = np.asarray(occ, bool)
@@ -293,7 +316,7 @@ def layout_from_mask(
     cells = np.argwhere(union)
     extent = np.ptp(cells, axis=0) + 1
     ids = [k + 1 for k in movable]
-    camera = fit_box_camera(mask, ids, depth=extent[0] / extent[1], fovy=fovy)
+    camera = fit_box_camera(mask, ids, depth=[depth_ratio(occ), *(depths or [])], fovy=fovy)
     if fit_depth and camera.elevation >= DEPTH_FREE_ELEVATION:
         free = fit_box_camera(mask, ids, fovy=fovy)
         if (

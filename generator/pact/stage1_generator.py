@@ -30,7 +30,8 @@ that leaves one of its parts empty (the small model does for about one object in
 or puts a drawer in the wrong row is wrong whatever its other parts look like. The kept
 sample's grids are then rebuilt from a box and camera fitted to the mask
 (``mask_layout.layout_from_mask``: the parts where the mask puts them on the box's front,
-as deep as the sample drew them; ``mask_layout=False`` turns it off). When no
+as deep as the sample drew them, the box as deep as the candidate whose depth explains
+the mask's silhouette best; ``mask_layout=False`` turns it off). When no
 box explains the mask's silhouette, instead: a part
 the mask shows that the kept sample still leaves empty is carved out of the base where
 the mask puts it (``mask_agreement.carve_missing``), the movable parts on the front
@@ -66,7 +67,7 @@ from generator.part_cleaning import clean_parts
 from .checkpoint import load_checkpoint
 from .flow import SamplerConfig
 from .mask_agreement import agreement, carve_missing, fit_height, relabel_front, sample_mask
-from .mask_layout import layout_from_mask
+from .mask_layout import depth_ratio, layout_from_mask
 from .preprocess import encoder_inputs, square_inputs, square_silhouette
 from .stage1 import (
     LatentStats,
@@ -328,6 +329,10 @@ class Stage1Generator:
                 ]
             )
             own_masks = [own[k] for k in keep]
+        # every candidate's depth over width: the box layout picks the one that explains the
+        # mask's silhouette best (mask_layout.layout_from_mask)
+        depths = [[depth_ratio(o) for o in occ[b * n : (b + 1) * n]] for b in range(len(images))]
+        depths = [[d for d in ds if d is not None] for ds in depths]
         for i, t, f in steps:
             callback(i, t, f[torch.as_tensor(keep, device=f.device)])
         occ, exists = occ[keep], exists[keep]
@@ -344,7 +349,11 @@ class Stage1Generator:
                 T = top + 1
         boxed = np.zeros(len(occ), bool)  # laid out on a box (mask_layout): closed already
         for b, slots in enumerate(shown):
-            laid = layout_from_mask(occ[b], masks[b], slots) if self.mask_layout else None
+            laid = (
+                layout_from_mask(occ[b], masks[b], slots, depths=depths[b])
+                if self.mask_layout
+                else None
+            )
             if laid is not None:  # a box and camera fitted to the mask: parts where it puts them
                 occ[b] = laid[0]
                 exists[b] = occ[b].reshape(T, -1).any(axis=1)
