@@ -481,6 +481,27 @@ def test_shape_prior_makes_a_drawer_taller_than_wide_a_side_hinged_door():
         assert np.isclose(j.origin[0], 0.4) and np.isclose(j.upper - j.lower, np.pi / 2)
 
 
+def test_shape_prior_makes_a_full_width_drawer_of_a_tall_appliance_an_oven_door():
+    """A wall oven 0.6 wide and 1.0 tall whose upper door (full width, 0.3 of the height)
+    the heads call a drawer: the door hinges at its bottom front edge. A nightstand's
+    drawer in a frame (0.85 of the width), and an oven's storage drawer (0.2 of the
+    height of an oven 1.25 as tall as wide), stay drawers."""
+    from generator.pact.articulation import apply_shape_prior
+
+    oven = (np.array([-0.3, -0.3, -0.5]), np.array([0.3, 0.3, 0.5]))
+    upper = (np.array([-0.2, -0.3, 0.1]), np.array([0.3, 0.3, 0.4]))
+    j = apply_shape_prior(_joint("prismatic", "drawer", (0.3, 0, 0), (1, 0, 0)), *upper, *oven)
+    assert (j.type, j.semantic) == ("revolute", "door")
+    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.3, 0.0, 0.1))
+    framed = (np.array([-0.2, -0.255, 0.1]), np.array([0.3, 0.255, 0.4]))
+    j = apply_shape_prior(_joint("prismatic", "drawer", (0.3, 0, 0), (1, 0, 0)), *framed, *oven)
+    assert j.type == "prismatic"
+    low = (np.array([-0.4, -0.4, -0.5]), np.array([0.4, 0.4, 0.5]))  # 0.8 wide, 1.0 tall
+    storage = (np.array([-0.3, -0.4, -0.5]), np.array([0.4, 0.4, -0.3]))
+    j = apply_shape_prior(_joint("prismatic", "drawer", (0.4, 0, 0), (1, 0, 0)), *storage, *low)
+    assert j.type == "prismatic"
+
+
 def test_door_panel_keeps_the_front_slab_closed_and_coloured():
     """The door made of a part drawn 0.5 deep is its front 0.1: a closed slab from x = 0.15
     to 0.25 with the part's full face, coloured as the part."""
