@@ -165,6 +165,9 @@ def test_layout_takes_the_candidate_depth_that_explains_the_silhouette():
     # the same from the other side
     mirrored = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=-40.0, elevation_deg=10.0)
     assert fit_box_camera(mirrored, [2, 3], depth=[0.25, 0.5, 1.0, 2.0]).depth == 0.5
+    # two depths that explain the silhouette as well (0.5 and 0.6 for the chest's 0.52): the
+    # deeper is taken
+    assert fit_box_camera(level, [2, 3], depth=[0.25, 0.5, 0.6, 1.0]).depth == 0.6
 
 
 def test_layout_carves_a_table_between_its_legs():
