@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 import torch
@@ -481,21 +483,26 @@ def test_shape_prior_makes_a_drawer_taller_than_wide_a_side_hinged_door():
         assert np.isclose(j.origin[0], 0.4) and np.isclose(j.upper - j.lower, np.pi / 2)
 
 
-def test_shape_prior_makes_a_full_width_drawer_of_a_tall_appliance_an_oven_door():
-    """A wall oven 0.6 wide and 1.0 tall whose upper door (full width, 0.3 of the height)
-    the heads call a drawer: the door hinges at its bottom front edge. A nightstand's
-    drawer in a frame (0.85 of the width), and an oven's storage drawer (0.2 of the
-    height of an oven 1.25 as tall as wide), stay drawers."""
+def test_shape_prior_makes_a_full_width_front_part_of_a_tall_appliance_an_oven_door():
+    """A wall oven 0.6 wide and 1.0 tall whose upper door (full width, 0.28 of the height)
+    the heads call a drawer, or a side-hinged door (it is over twice as wide as tall, a
+    drawer's shape): the door hinges at its bottom front edge. A nightstand's drawer in a
+    frame (0.85 of the width, twice as wide as tall), called either, and an oven's
+    storage drawer (0.2 of the height of an oven 1.25 as tall as wide), are drawers."""
     from generator.pact.articulation import apply_shape_prior
 
     oven = (np.array([-0.3, -0.3, -0.5]), np.array([0.3, 0.3, 0.5]))
-    upper = (np.array([-0.2, -0.3, 0.1]), np.array([0.3, 0.3, 0.4]))
-    j = apply_shape_prior(_joint("prismatic", "drawer", (0.3, 0, 0), (1, 0, 0)), *upper, *oven)
-    assert (j.type, j.semantic) == ("revolute", "door")
-    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.3, 0.0, 0.1))
-    framed = (np.array([-0.2, -0.255, 0.1]), np.array([0.3, 0.255, 0.4]))
-    j = apply_shape_prior(_joint("prismatic", "drawer", (0.3, 0, 0), (1, 0, 0)), *framed, *oven)
-    assert j.type == "prismatic"
+    upper = (np.array([-0.2, -0.3, 0.12]), np.array([0.3, 0.3, 0.4]))
+    framed = (np.array([-0.2, -0.255, 0.15]), np.array([0.3, 0.255, 0.4]))
+    for called in (
+        _joint("prismatic", "drawer", (0.3, 0, 0), (1, 0, 0)),
+        _joint("revolute", "door", (0.3, -0.3, 0.25), (0, 0, 1)),
+    ):
+        j = apply_shape_prior(copy.deepcopy(called), *upper, *oven)
+        assert (j.type, j.semantic) == ("revolute", "door")
+        assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.3, 0.0, 0.12))
+        j = apply_shape_prior(copy.deepcopy(called), *framed, *oven)
+        assert (j.type, j.semantic) == ("prismatic", "drawer")
     low = (np.array([-0.4, -0.4, -0.5]), np.array([0.4, 0.4, 0.5]))  # 0.8 wide, 1.0 tall
     storage = (np.array([-0.3, -0.4, -0.5]), np.array([0.4, 0.4, -0.3]))
     j = apply_shape_prior(_joint("prismatic", "drawer", (0.4, 0, 0), (1, 0, 0)), *storage, *low)
@@ -583,3 +590,30 @@ def test_joint_from_shape_for_parts_no_head_read():
     # as narrow, but half the object deep: a box that cannot swing on a front hinge slides
     j = joint_from_shape(np.array([0.0, 0.2, -0.3]), np.array([0.4, 0.5, 0.3]), obj_lo, obj_hi)
     assert j.type == "prismatic"
+
+
+def test_shape_prior_makes_a_tall_lid_on_the_front_a_front_part():
+    """A 'lid' hinged at the back of the top is a lid while it is thin (a top-loading
+    washer's, 0.06 of the height); 0.45 of a wall oven's height tall and full width, it is
+    the oven's upper door, hinged at its bottom front edge; 0.3 of a nightstand's height
+    and 2.5 times as wide as tall, its drawer."""
+    from generator.pact.articulation import apply_shape_prior
+
+    def lid():  # noqa: ANN202
+        return _joint("revolute", "lid", (-0.3, 0, 0.5), (0, -1, 0))
+
+    washer = (np.array([-0.3, -0.3, -0.5]), np.array([0.3, 0.3, 0.5]))
+    top = (np.array([-0.25, -0.28, 0.44]), np.array([0.3, 0.28, 0.5]))
+    j = apply_shape_prior(lid(), *top, *washer)
+    assert (j.type, j.semantic) == ("revolute", "lid")
+    assert np.allclose(j.axis, (0, -1, 0)) and np.allclose(j.origin, (-0.3, 0, 0.5))
+    oven = washer  # 0.6 wide, 1.0 tall
+    upper = (np.array([-0.25, -0.3, 0.05]), np.array([0.3, 0.3, 0.5]))
+    j = apply_shape_prior(lid(), *upper, *oven)
+    assert (j.type, j.semantic) == ("revolute", "door")
+    assert np.allclose(j.axis, (0, 1, 0)) and np.allclose(j.origin, (0.3, 0.0, 0.05))
+    nightstand = (np.array([-0.3, -0.4, -0.4]), np.array([0.3, 0.4, 0.4]))  # 0.8 x 0.8
+    drawer = (np.array([-0.2, -0.3, 0.16]), np.array([0.3, 0.3, 0.4]))  # 0.6 x 0.24
+    j = apply_shape_prior(lid(), *drawer, *nightstand)
+    assert (j.type, j.semantic) == ("prismatic", "drawer")
+    assert np.allclose(j.axis, (1, 0, 0))

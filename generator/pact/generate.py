@@ -408,9 +408,11 @@ class PActGenerator:
                 # no side-hinged door as wide as a drawer, no drawer taller than wide, a
                 # door off the middle hinged at its outer edge (an appliance the user
                 # names: its category's rule knows)
-                drawn = pj.type
+                drawn = pj.type, pj.semantic
                 pj = apply_shape_prior(pj, lo, hi, obj_lo, obj_hi)
-                if drawn == "prismatic" and pj.type == "revolute":  # drawn as deep as a drawer
+                front_door = pj.type == "revolute" and pj.semantic == "door"
+                if front_door and (drawn[0] == "prismatic" or drawn[1] == "lid"):
+                    # drawn as deep as a drawer, or as a lid reaching far back
                     meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
             if hints.get("category"):  # the user's category: how its doors hinge
                 pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
