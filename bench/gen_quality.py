@@ -18,7 +18,9 @@ default folder ``generator.data.real_split.DEFAULT_REAL_SPLIT``, /work/data/real
 Every image (``<object>_<style>_<k>``, product photos and rooms) is generated
 from, the prediction saved in SPLIT/pred-<generator>[-nomask]/<image id>/ and compared
 with its object's ground truth SPLIT/gt/<object>/; the JSON adds the means per style
-and per category and style.
+and per category and style. Every group also counts the ground truth's movable joints
+whose type the predictions lack (``joint_types_missed`` of ``movable_joints``:
+``generator.metrics.joint_types_missed``).
 
 Several ``--generator`` s run one after the other on the same images; the JSON is then
 ``{"runs": [<one run's JSON>, ...], "comparison": {category: {metric: {generator:
@@ -44,7 +46,14 @@ from rich.table import Table
 from generator.articulated import load_bundle, save_bundle
 from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
 from generator.data.test_split import write_test_split
-from generator.metrics import METRIC_KEYS, MetricError, evaluate_dirs, evaluate_pair, format_table
+from generator.metrics import (
+    METRIC_KEYS,
+    MetricError,
+    evaluate_dirs,
+    format_table,
+    mean_scores,
+    score_row,
+)
 
 GENERATORS = ("pact", "retrieval")
 
@@ -75,15 +84,6 @@ def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool):  # n
     return img, mask, hints
 
 
-def _means(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key in METRIC_KEYS:
-        vals = [r[key] for r in rows if r.get(key) is not None]
-        out[key] = float(np.mean(vals)) if vals else None
-    out["count"] = len(rows)
-    return out
-
-
 def evaluate_images(
     pred_dir: Path, split_dir: Path, images: list[dict[str, Any]]
 ) -> dict[str, Any]:
@@ -100,12 +100,12 @@ def evaluate_images(
         try:
             if im["object"] not in gts:
                 gts[im["object"]] = load_bundle(split_dir / "gt" / im["object"])
-            scores = evaluate_pair(load_bundle(pred_dir / iid), gts[im["object"]])
+            scores = score_row(load_bundle(pred_dir / iid), gts[im["object"]])
         except (ValueError, MetricError) as e:  # ObjectModelError is a ValueError
             failed[iid] = str(e)
             continue
         row: dict[str, Any] = {"category": im["category"], "style": im["style"]}
-        row.update({k: (None if v is None or np.isnan(v) else float(v)) for k, v in scores.items()})
+        row.update(scores)
         per_image[iid] = row
     rows = list(per_image.values())
 
@@ -113,14 +113,14 @@ def evaluate_images(
         by: dict[str, list[dict[str, Any]]] = {}
         for r in rows:
             by.setdefault(key(r), []).append(r)
-        return {k: _means(v) for k, v in sorted(by.items())}
+        return {k: mean_scores(v) for k, v in sorted(by.items())}
 
     return {
         "per_object": per_image,
         "per_category": group(lambda r: r["category"]),
         "per_style": group(lambda r: r["style"]),
         "per_category_style": group(lambda r: f"{r['category']}/{r['style']}"),
-        "mean": _means(rows),
+        "mean": mean_scores(rows),
         "missing": missing,
         "failed": failed,
     }
@@ -196,12 +196,13 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
 
 
 def comparison(runs: list[dict[str, Any]]) -> dict[str, Any]:
-    """{category (and "all"): {metric: {generator: value}, "count": n}} over ``runs``."""
+    """{category (and "all"): {metric: {generator: value}, "count": n}} over ``runs``
+    (metrics: the seven and ``joint_types_missed``)."""
     cats = sorted({c for r in runs for c in r["per_category"]}) + ["all"]
     out: dict[str, Any] = {}
     for c in cats:
         row: dict[str, Any] = {}
-        for key in METRIC_KEYS:
+        for key in (*METRIC_KEYS, "joint_types_missed"):
             row[key] = {
                 r["generator"]: (r["mean"] if c == "all" else r["per_category"].get(c, {})).get(key)
                 for r in runs
@@ -221,11 +222,13 @@ def comparison_table(comp: dict[str, Any], names: list[str]) -> Table:
     table.add_column("n", justify="right")
     for key in METRIC_KEYS:
         table.add_column(key, justify="right")
+    table.add_column("joint types missed", justify="right")
     for cat, row in comp.items():
         cells = [
             " / ".join("-" if row[k][n] is None else f"{row[k][n]:.3f}" for n in names)
             for k in METRIC_KEYS
         ]
+        cells.append(" / ".join(str(row["joint_types_missed"][n]) for n in names))
         table.add_row(cat, str(row["count"]), *cells, style="bold" if cat == "all" else None)
     return table
 

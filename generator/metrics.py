@@ -91,12 +91,20 @@ AOR (average overlapping ratio)
     their posed part boxes; the pair IoUs are averaged per state and the states
     averaged. Objects with fewer than two sibling parts have no AOR: the value is NaN
     (SINGAPO returns -1 and drops the object), and aggregates skip it.
+
+Joint types missed
+    Not one of the paper's metrics: a count of the ground truth's movable joints
+    (revolute, prismatic, continuous: all but fixed) whose type the prediction lacks,
+    the two objects' joint types compared as multisets (a door predicted as a drawer
+    counts one; an extra part counts nothing). Folders report its sum over objects with
+    the number of ground-truth movable joints (``joint_types_missed``, ``movable_joints``).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -536,16 +544,43 @@ def evaluate_pair(
     }
 
 
+def joint_types_missed(pred: ArticulatedObject, gt: ArticulatedObject) -> tuple[int, int]:
+    """(missed, total): how many of ``gt``'s movable joints have a type ``pred`` lacks, the
+    joint types compared as multisets (module docstring), and how many it has."""
+
+    def types(obj: ArticulatedObject) -> Counter[str]:
+        return Counter(
+            p.joint.type for p in obj.parts if p.joint is not None and p.joint.type != "fixed"
+        )
+
+    want, have = types(gt), types(pred)
+    return sum(max(0, n - have[t]) for t, n in want.items()), sum(want.values())
+
+
 # --------------------------------------------------------------------------- folders
 
 
-def _mean_scores(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Per-metric mean over ``rows`` skipping undefined (None) values, plus ``count``."""
+def score_row(pred: ArticulatedObject, gt: ArticulatedObject, **kwargs: Any) -> dict[str, Any]:
+    """``evaluate_pair``'s metrics (NaN as None, for strict JSON) and the joint-type count
+    (``joint_types_missed``, ``movable_joints``) of ``pred`` against ``gt``."""
+    row: dict[str, Any] = {
+        k: (None if math.isnan(v) else float(v))
+        for k, v in evaluate_pair(pred, gt, **kwargs).items()
+    }
+    row["joint_types_missed"], row["movable_joints"] = joint_types_missed(pred, gt)
+    return row
+
+
+def mean_scores(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Per-metric mean over ``rows`` skipping undefined (None) values, ``count``, and the
+    sums of ``joint_types_missed`` and ``movable_joints`` (of rows that have them)."""
     out: dict[str, Any] = {}
     for key in METRIC_KEYS:
         vals = [r[key] for r in rows if r.get(key) is not None]
         out[key] = float(np.mean(vals)) if vals else None
     out["count"] = len(rows)
+    for key in ("joint_types_missed", "movable_joints"):
+        out[key] = int(sum(r.get(key) or 0 for r in rows))
     return out
 
 
@@ -556,7 +591,8 @@ def evaluate_dirs(pred_dir: str | Path, gt_dir: str | Path, **kwargs: Any) -> di
     ``evaluate_pair``. Returns::
 
         {"per_object":   {id: {"category": str, <metric>: float | None, ...}},
-         "per_category": {category: {<metric>: mean, ..., "count": n}},
+         "per_category": {category: {<metric>: mean, ..., "count": n,
+                                     "joint_types_missed": sum, "movable_joints": sum}},
          "mean":         {<metric>: mean over all evaluated objects, ..., "count": n},
          "missing":      [ids in gt_dir with no prediction],
          "failed":       {id: reason}   # bundles that did not load or evaluate
@@ -578,13 +614,13 @@ def evaluate_dirs(pred_dir: str | Path, gt_dir: str | Path, **kwargs: Any) -> di
         try:
             gt = load_bundle(gts[oid])
             pred = load_bundle(preds[oid])
-            scores = evaluate_pair(pred, gt, **kwargs)
+            scores = score_row(pred, gt, **kwargs)
         except (ObjectModelError, MetricError) as e:
             log.warning("%s: not evaluated: %s", oid, e)
             failed[oid] = str(e)
             continue
         row: dict[str, Any] = {"category": gt.category}
-        row.update({k: (None if math.isnan(v) else v) for k, v in scores.items()})
+        row.update(scores)
         per_object[oid] = row
         log.info("%s: %s", oid, {k: row[k] for k in METRIC_KEYS})
     by_cat: dict[str, list[dict[str, Any]]] = {}
@@ -592,8 +628,8 @@ def evaluate_dirs(pred_dir: str | Path, gt_dir: str | Path, **kwargs: Any) -> di
         by_cat.setdefault(row["category"], []).append(row)
     return {
         "per_object": per_object,
-        "per_category": {c: _mean_scores(rows) for c, rows in sorted(by_cat.items())},
-        "mean": _mean_scores(list(per_object.values())),
+        "per_category": {c: mean_scores(rows) for c, rows in sorted(by_cat.items())},
+        "mean": mean_scores(list(per_object.values())),
         "missing": missing,
         "failed": failed,
         "extra": sorted(set(preds) - set(gts)),
@@ -611,11 +647,20 @@ def format_table(results: dict[str, Any]) -> Table:
     table.add_column("n", justify="right")
     for key in METRIC_KEYS:
         table.add_column(key, justify="right")
+    table.add_column("joint types missed", justify="right")
+
+    def missed(row: dict[str, Any]) -> str:
+        return f"{row.get('joint_types_missed', 0)} of {row.get('movable_joints', 0)}"
+
     for cat, row in results.get("per_category", {}).items():
-        table.add_row(cat, str(row["count"]), *(cell(row[k]) for k in METRIC_KEYS))
+        table.add_row(cat, str(row["count"]), *(cell(row[k]) for k in METRIC_KEYS), missed(row))
     mean = results.get("mean", {})
     table.add_row(
-        "all", str(mean.get("count", 0)), *(cell(mean.get(k)) for k in METRIC_KEYS), style="bold"
+        "all",
+        str(mean.get("count", 0)),
+        *(cell(mean.get(k)) for k in METRIC_KEYS),
+        missed(mean),
+        style="bold",
     )
     notes = []
     if results.get("missing"):

@@ -24,6 +24,7 @@ from generator.metrics import (
     format_table,
     giou,
     iou,
+    joint_types_missed,
     match_parts,
     part_boxes,
     part_poses,
@@ -267,6 +268,25 @@ def test_aor_of_overlapping_siblings() -> None:
     assert math.isnan(aor(ArticulatedObject(cabinet().parts[:2])))
 
 
+def test_joint_types_missed_compares_multisets_of_movable_joint_types() -> None:
+    """The cabinet has two prismatic joints and a revolute one: a drawer predicted as a
+    door misses one prismatic (the extra revolute counts nothing); a missing door one
+    revolute; an extra part nothing; a part made fixed its type."""
+    gt = cabinet()
+    assert joint_types_missed(gt, gt) == (0, 3)
+    as_door = cabinet()
+    as_door.part("drawer_1").joint = copy.deepcopy(gt.part("door_0").joint)
+    assert joint_types_missed(as_door, gt) == (1, 3)
+    assert joint_types_missed(without(gt, "door_0"), gt) == (1, 3)
+    extra = cabinet()
+    extra.parts.append(box_part("drawer_2", [0.25, -0.3, -0.4], [0.5, 0.3, -0.3], prismatic()))
+    assert joint_types_missed(extra, gt) == (0, 3)
+    fixed = cabinet()
+    fixed.part("drawer_0").joint = Joint("fixed")
+    assert joint_types_missed(fixed, gt) == (1, 3)
+    assert joint_types_missed(gt, fixed) == (0, 2)
+
+
 # --------------------------------------------------------------------------- folders
 
 
@@ -287,9 +307,12 @@ def test_evaluate_dirs_and_table(tmp_path) -> None:
     assert res["per_object"]["a"]["RS-dgIoU"] == pytest.approx(0.0, abs=1e-12)
     assert res["per_object"]["b"]["RS-dcDist"] == pytest.approx(0.0625 / 3)
     assert res["per_category"]["cabinet"]["count"] == 2
+    # the drawer moved, not re-typed: no joint type missed, 3 movable joints per object
+    assert res["mean"]["joint_types_missed"] == 0 and res["mean"]["movable_joints"] == 6
     assert res["mean"]["RS-dcDist"] == pytest.approx(0.0625 / 6)
     json.dumps(res, allow_nan=False)
     console = Console(record=True, width=200)
     console.print(format_table(res))
     text = console.export_text()
     assert "RS-dgIoU" in text and "cabinet" in text and "1 missing" in text
+    assert "0 of 6" in text
