@@ -277,6 +277,29 @@ def test_sample_mask_shows_the_samples_parts_where_the_silhouette_is():
     assert set(np.unique(own)) == {0, 1, 2}
 
 
+def test_sample_mask_keeps_a_parts_largest_piece():
+    """A sample that also draws a corner of the upper drawer as the lower drawer's: that
+    stray piece is the base in the sample's mask, the lower drawer one piece where the
+    picture has it."""
+    from scipy import ndimage
+
+    from generator.pact.mask_agreement import sample_mask
+
+    truth = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
+    occ = np.zeros((3, 32, 32, 32), bool)
+    occ[0, 8:24, 0:32, 6:26] = True
+    occ[0, 22:24, 1:31, 7:25] = False
+    occ[1, 22:24, 1:31, 16:25] = True
+    occ[2, 22:24, 1:31, 7:15] = True
+    occ[1, 22:24, 1:6, 20:25] = False  # the upper drawer's corner drawn as slot 2
+    occ[2, 22:24, 1:6, 20:25] = True
+    own = sample_mask(occ, truth > 0)
+    assert ndimage.label(own == 3, structure=np.ones((3, 3), bool))[1] == 1
+    assert ((own == 3) & (truth == 2)).sum() <= 0.02 * (own == 3).sum()
+    a, b = own == 3, truth == 3
+    assert (a & b).sum() / (a | b).sum() > 0.6
+
+
 def test_sample_mask_of_an_empty_sample_or_silhouette_is_empty():
     from generator.pact.mask_agreement import sample_mask
 

@@ -30,6 +30,7 @@ one core.
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 GRID = 40  # G: the side of the compared id images, in pixels
 PIXEL_MIN = 0.7  # voxels: the smallest pixel a sample is rendered with
@@ -187,9 +188,12 @@ def sample_mask(
     (slot k -> id k + 1) as seen from the view in which its silhouette agrees best with
     the image's ``silhouette`` (H, W) bool (``best_view``), stretched onto the
     silhouette's bounding box; silhouette pixels no part covers are the base (1), pixels
-    off the silhouette 0. A part that covers less than ``min_share`` of the silhouette
-    counts as the base (a speck of a part is no part: the layout would give it a whole
-    front cell). All zeros when the silhouette or the sample is empty.
+    off the silhouette 0. A part keeps its largest connected piece, the rest of its
+    pixels are the base (a sample's part seen in scattered pieces would be laid out as
+    one box spanning them all, through its neighbours); a part that then covers less
+    than ``min_share`` of the silhouette counts as the base (a speck of a part is no
+    part: the layout would give it a whole front cell). All zeros when the silhouette or
+    the sample is empty.
 
     A silhouette cannot always tell a view from its mirror image (azimuth a against -a,
     the front on the other side): for a sample about as deep as it is wide, the parts
@@ -208,7 +212,13 @@ def sample_mask(
     out[r0 : r0 + h, c0 : c0 + w] = np.maximum(_stretched(ids, h, w), 1)
     out[~sil] = 0
     for k in np.unique(out):
-        if k > 1 and (out == k).sum() < min_share * sil.sum():
+        if k <= 1:
+            continue
+        pieces, n = ndimage.label(out == k, structure=np.ones((3, 3), bool))
+        if n > 1:  # the largest piece only
+            largest = 1 + int(np.argmax(np.bincount(pieces.ravel())[1:]))
+            out[(pieces > 0) & (pieces != largest)] = 1
+        if (out == k).sum() < min_share * sil.sum():
             out[out == k] = 1
     return out
 
