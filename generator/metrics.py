@@ -590,10 +590,12 @@ def evaluate_dirs(pred_dir: str | Path, gt_dir: str | Path, **kwargs: Any) -> di
     Bundles are found with ``find_bundles`` and paired by folder name; ``kwargs`` go to
     ``evaluate_pair``. Returns::
 
-        {"per_object":   {id: {"category": str, <metric>: float | None, ...}},
+        {"per_object":   {id: {"category": str, <metric>: float | None, ...,
+                               "joint_types_missed": int, "movable_joints": int}},
          "per_category": {category: {<metric>: mean, ..., "count": n,
                                      "joint_types_missed": sum, "movable_joints": sum}},
-         "mean":         {<metric>: mean over all evaluated objects, ..., "count": n},
+         "mean":         {<metric>: mean over all evaluated objects, ..., "count": n,
+                          "joint_types_missed": sum, "movable_joints": sum},
          "missing":      [ids in gt_dir with no prediction],
          "failed":       {id: reason}   # bundles that did not load or evaluate
          "extra":        [ids in pred_dir with no ground truth]}
