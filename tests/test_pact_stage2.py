@@ -617,3 +617,33 @@ def test_shape_prior_makes_a_tall_lid_on_the_front_a_front_part():
     j = apply_shape_prior(lid(), *drawer, *nightstand)
     assert (j.type, j.semantic) == ("prismatic", "drawer")
     assert np.allclose(j.axis, (1, 0, 0))
+
+
+def test_a_stacked_ovens_other_full_width_door_swings_down_too():
+    """A stacked oven 1.7 as tall as wide: its upper door hinges at the bottom (the shape
+    prior made it so); its lower door, full width and 1.2 as wide as tall, which the
+    heads hinge at the side, hinges at its bottom edge too. A fridge's full-width door
+    (taller than wide) and a narrower side door keep their side hinge, and with no
+    bottom-hinged door on the object nothing changes."""
+    from generator.pact.articulation import match_oven_doors
+
+    oven = (np.array([-0.3, -0.3, -0.85]), np.array([0.3, 0.3, 0.85]))
+    upper = (np.array([0.25, -0.3, 0.2]), np.array([0.3, 0.3, 0.6]))
+    lower = (np.array([0.25, -0.3, -0.4]), np.array([0.3, 0.3, 0.1]))  # 0.6 x 0.5
+    tall = (np.array([0.25, -0.3, -0.8]), np.array([0.3, 0.3, 0.1]))  # 0.6 x 0.9
+    narrow = (np.array([0.25, -0.3, -0.4]), np.array([0.3, 0.2, 0.1]))  # 0.5 of the width
+
+    def bottom():  # noqa: ANN202
+        return _joint("revolute", "door", (0.3, 0, 0.2), (0, 1, 0))
+
+    def side():  # noqa: ANN202
+        return _joint("revolute", "door", (0.3, -0.3, 0), (0, 0, 1))
+
+    j = match_oven_doors([bottom(), side()], [upper, lower], *oven)
+    assert j[1].type == "revolute" and np.allclose(j[1].axis, (0, 1, 0))
+    assert np.allclose(j[1].origin, (0.3, 0.0, -0.4))
+    for other in (tall, narrow):
+        j = match_oven_doors([bottom(), side()], [upper, other], *oven)
+        assert np.allclose(j[1].axis, (0, 0, 1)) and np.allclose(j[1].origin, (0.3, -0.3, 0))
+    j = match_oven_doors([side(), side()], [upper, lower], *oven)
+    assert all(np.allclose(x.axis, (0, 0, 1)) for x in j)

@@ -379,6 +379,47 @@ def apply_shape_prior(
     return joint
 
 
+def match_oven_doors(
+    joints: list[PartJoint],
+    bounds: list[tuple[np.ndarray, np.ndarray]],
+    obj_lo: np.ndarray,
+    obj_hi: np.ndarray,
+) -> list[PartJoint]:
+    """``joints`` of parts with ``bounds`` (lo, hi each) in an object with bounds
+    ``obj_lo``..``obj_hi``, after ``apply_shape_prior``: on an object one of whose
+    full-width front doors (``APPLIANCE_DOOR_WIDTH``) hinges at its bottom edge (an
+    oven's), a full-width front door wider than tall (``APPLIANCE_DOOR_ASPECT``) that
+    hinges at its side hinges at its bottom edge too: the other door of a stacked oven.
+    ``APPLIANCE_MAX_HEIGHT`` leaves stacked ovens taller than 1.6 for their width alone
+    (their lower doors, 1.04-1.36 as wide as tall on the real dev split, kept the heads'
+    side hinge); a fridge's full-width door is taller than wide."""
+    obj_size = obj_hi - obj_lo
+
+    def front_full_width(lo: np.ndarray, hi: np.ndarray) -> bool:
+        return hi[0] >= obj_hi[0] - 0.1 and hi[1] - lo[1] >= APPLIANCE_DOOR_WIDTH * obj_size[1]
+
+    def hinge(j: PartJoint) -> int:  # the axis the hinge runs along
+        return int(np.argmax(np.abs(np.asarray(j.axis, dtype=float))))
+
+    if not any(
+        j.type == "revolute" and j.semantic == "door" and hinge(j) == 1 and front_full_width(lo, hi)
+        for j, (lo, hi) in zip(joints, bounds, strict=True)
+    ):
+        return joints
+    for i, (j, (lo, hi)) in enumerate(zip(joints, bounds, strict=True)):
+        size = hi - lo
+        if (
+            j.type == "revolute"
+            and j.semantic == "door"
+            and hinge(j) == 2
+            and front_full_width(lo, hi)
+            and size[2] > 0
+            and size[1] / size[2] >= APPLIANCE_DOOR_ASPECT
+        ):
+            joints[i] = _bottom_door(j, lo, hi)
+    return joints
+
+
 #: A front part the head never saw (past the flow's slots) is a drawer from this width
 #: over height up (the real dev split's drawers 1.30 and up, its side-hinged doors up to
 #: 1.73: in between, where the two meet, the drawers are the many: 24 against 3).

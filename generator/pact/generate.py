@@ -10,8 +10,9 @@ of the part's occupancy, no islands) -> ``part_cleaning.clean_mesh`` (the cleani
 generator's output gets) -> articulation head on the aggregated features (+ revolute
 origins projected onto the part's AABB surface; ``articulation.apply_shape_prior``: no
 side-hinged door as wide as a drawer, no drawer taller than wide (a door, cut to a
-door's thickness by ``door_panel``), an oven's full-width door hinged at the bottom, a
-door off the middle hinged at its outer edge, off with ``shape_prior=False``; slots past
+door's thickness by ``door_panel``), an oven's full-width door hinged at the bottom (and
+a stacked oven's other doors, ``articulation.match_oven_doors``), a door off the middle
+hinged at its outer edge, off with ``shape_prior=False``; slots past
 the flow's, laid out from the mask, are voxel boxes
 typed by ``articulation.joint_from_shape``) -> ``ArticulatedObject`` in the
 normalized frame (``scale`` None; a ``height`` hint in metres
@@ -50,11 +51,13 @@ from .articulation import (
     DOOR_HINGE,
     DOOR_PANEL_DEPTH,
     ArticulationHead,
+    PartJoint,
     aggregate_last,
     apply_category_prior,
     apply_shape_prior,
     decode_joint,
     joint_from_shape,
+    match_oven_doors,
     pool_parts,
     pool_slots,
     postprocess_joint,
@@ -393,6 +396,8 @@ class PActGenerator:
         parts = [Part("base", "base", meshes[0])]
         part_bounds = np.array([m.bounds for m in meshes.values()])
         obj_lo, obj_hi = part_bounds[:, 0].min(0), part_bounds[:, 1].max(0)
+        shape_prior = self.shape_prior and hints.get("category") not in DOOR_HINGE
+        read: dict[int, tuple[PartJoint, np.ndarray, np.ndarray]] = {}  # k -> joint, lo, hi
         for k in sorted(meshes):
             if k == 0:
                 continue
@@ -402,9 +407,8 @@ class PActGenerator:
             else:  # past the flow's slots (laid out from the mask): no head read it
                 pj = joint_from_shape(lo, hi, obj_lo, obj_hi)
             if pj is None:
-                parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
-            if self.shape_prior and hints.get("category") not in DOOR_HINGE:
+            if shape_prior:
                 # no side-hinged door as wide as a drawer, no drawer taller than wide, a
                 # door off the middle hinged at its outer edge (an appliance the user
                 # names: its category's rule knows)
@@ -414,6 +418,19 @@ class PActGenerator:
                 if front_door and (drawn[0] == "prismatic" or drawn[1] == "lid"):
                     # drawn as deep as a drawer, or as a lid reaching far back
                     meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
+            read[k] = (pj, lo, hi)
+        if shape_prior and read:  # a stacked oven's doors all swing down
+            matched = match_oven_doors(
+                [v[0] for v in read.values()], [v[1:] for v in read.values()], obj_lo, obj_hi
+            )
+            read = {k: (j, *v[1:]) for (k, v), j in zip(read.items(), matched, strict=True)}
+        for k in sorted(meshes):
+            if k == 0:
+                continue
+            if k not in read:
+                parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
+                continue
+            pj, lo, hi = read[k]
             if hints.get("category"):  # the user's category: how its doors hinge
                 pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
             pj = postprocess_joint(pj, lo, hi)
