@@ -249,6 +249,17 @@ def postprocess_joint(joint: PartJoint, lo: np.ndarray, hi: np.ndarray) -> PartJ
     return joint
 
 
+#: A part is on the object's front when its largest x is within this of the object's
+#: (normalized units: a tenth of the object's size).
+FRONT_MARGIN = 0.1
+
+
+def _reaches_front(hi: np.ndarray, front: float) -> bool:
+    """Whether a part with upper bounds ``hi`` reaches the object's front ``front`` (its
+    largest x) within ``FRONT_MARGIN``."""
+    return bool(hi[0] >= front - FRONT_MARGIN)
+
+
 #: A side-hinged door is at most this wide for its height: wider front parts are drawers.
 #: Measured on front parts (width / height): side-hinged doors 0.24-1.76 (real dev split
 #: 0.24-1.73, procedural test split up to 1.76); drawers 1.30-4.16 on the real dev split,
@@ -337,7 +348,7 @@ def apply_shape_prior(
     caller gives either a door's thickness). Everything else is left as it is."""
     size = hi - lo
     obj_size = obj_hi - obj_lo
-    front = hi[0] >= obj_hi[0] - 0.1
+    front = _reaches_front(hi, obj_hi[0])
     if joint.type == "fixed" or not front or size[2] <= 0:
         return joint
     oven_door = (  # full width, on a tall appliance: a wall oven's or a stacked oven's door
@@ -396,7 +407,7 @@ def match_oven_doors(
     obj_size = obj_hi - obj_lo
 
     def front_full_width(lo: np.ndarray, hi: np.ndarray) -> bool:
-        return hi[0] >= obj_hi[0] - 0.1 and hi[1] - lo[1] >= APPLIANCE_DOOR_WIDTH * obj_size[1]
+        return _reaches_front(hi, obj_hi[0]) and hi[1] - lo[1] >= APPLIANCE_DOOR_WIDTH * obj_size[1]
 
     def hinge(j: PartJoint) -> int:  # the axis the hinge runs along
         return int(np.argmax(np.abs(np.asarray(j.axis, dtype=float))))
@@ -449,7 +460,7 @@ def joint_from_shape(
         np.array([1.0, 0.0, 0.0]),
     )
     size = hi - lo
-    if hi[0] < obj_hi[0] - 0.1 or size[2] <= 0:
+    if not _reaches_front(hi, obj_hi[0]) or size[2] <= 0:
         return joint
     deep = size[0] > PANEL_DEPTH * (obj_hi[0] - obj_lo[0])  # a box, no panel: it slides
     if deep or size[1] / size[2] >= SHAPE_DRAWER_ASPECT:
@@ -517,7 +528,7 @@ def apply_category_prior(
     are left as they are."""
     hinge = DOOR_HINGE.get(category)
     size = hi - lo
-    panel = size[0] < 0.6 * min(size[1], size[2]) and hi[0] >= front - 0.1
+    panel = size[0] < 0.6 * min(size[1], size[2]) and _reaches_front(hi, front)
     if hinge is None or joint.type == "fixed" or not panel or joint.semantic == "lid":
         return joint
     if category in DOORS_ONLY:
