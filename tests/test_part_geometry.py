@@ -403,3 +403,61 @@ def test_a_drawer_drawn_as_its_front_gets_the_body_of_its_collision_box() -> Non
     lo, hi = body.bounds
     assert hi[1] == pytest.approx(0.1) and lo[1] == pytest.approx(-0.27 - DRAWER_WALL)
     assert lo[0] == pytest.approx(-0.3) and hi[0] == pytest.approx(0.3)
+
+
+def test_visuals_of_two_doors_opening_together_are_cut_apart():
+    """A fridge's two side-by-side doors, hinged at their outer front edges, their visuals
+    6 cm deep behind the hinge line and 4 mm apart: swinging open, each one's back inner
+    corner sweeps ``hypot(0.06, 0.248) - 0.248`` = 7 mm past its free edge into the
+    other (AOR > 0). Cut apart, their swept boxes and the posed boxes the metrics read
+    stay apart (AOR 0), each visual is cut on its facing side only and by little, stays
+    closed and keeps its colours; the bar handle is not cut. Two drawers stacked with
+    room between them are left as they are."""
+    import trimesh as tm
+
+    from generator.metrics import aor
+    from generator.pact.sweep_clearance import keep_sweeps_apart, swept_bounds
+
+    def box(lo, hi):
+        m = tm.creation.box(np.subtract(hi, lo))
+        m.apply_translation(np.add(lo, hi) / 2)
+        m.visual.vertex_colors = np.tile([200, 120, 40, 255], (len(m.vertices), 1))
+        return m
+
+    visuals = {
+        "door_1": box((0.24, -0.25, -0.5), (0.3, -0.002, 0.5)),
+        "door_2": box((0.24, 0.002, -0.5), (0.3, 0.25, 0.5)),
+    }
+    joints = {
+        "door_1": Joint("revolute", (0.3, -0.25, 0), (0, 0, -1), 0, np.pi / 2),
+        "door_2": Joint("revolute", (0.3, 0.25, 0), (0, 0, 1), 0, np.pi / 2),
+    }
+    bar = np.array([[0.3, -0.06, -0.1], [0.33, -0.04, 0.1]])
+
+    def as_object(v):  # noqa: ANN001, ANN202
+        base = Part("base", "base", box((-0.3, -0.25, -0.5), (0.24, 0.25, 0.5)))
+        return ArticulatedObject([base, *(Part(n, "door", v[n], joints[n]) for n in v)])
+
+    assert aor(as_object(visuals)) > 1e-5
+    out = keep_sweeps_apart(visuals, {"door_1": bar}, joints)
+    a, b = out["door_1"].bounds, out["door_2"].bounds
+    swept_a = swept_bounds(
+        np.r_[np.minimum(a[:1], bar[:1]), np.maximum(a[1:], bar[1:])], joints["door_1"]
+    )
+    swept_b = swept_bounds(b, joints["door_2"])
+    assert swept_a[1, 1] <= swept_b[0, 1]
+    assert aor(as_object(out)) == 0.0
+    assert -0.02 < a[1, 1] < -0.002 and 0.002 < b[0, 1] < 0.02  # cut on the facing sides
+    np.testing.assert_allclose(a[0], [0.24, -0.25, -0.5])  # the rest kept
+    np.testing.assert_allclose(b[1], [0.3, 0.25, 0.5])
+    for m in (out["door_1"], out["door_2"]):
+        assert m.is_watertight
+        assert np.all(m.visual.vertex_colors[:, :3] == [200, 120, 40])
+
+    drawers = {
+        "drawer_1": box((-0.2, -0.3, 0.0), (0.3, 0.3, 0.2)),
+        "drawer_2": box((-0.2, -0.3, 0.21), (0.3, 0.3, 0.4)),
+    }
+    slide = Joint("prismatic", (0.3, 0, 0), (1, 0, 0), 0, 0.3)
+    kept = keep_sweeps_apart(drawers, {}, {"drawer_1": slide, "drawer_2": slide})
+    assert all(kept[n] is drawers[n] for n in drawers)

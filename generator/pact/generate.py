@@ -75,6 +75,7 @@ from .stage2 import (
     untokenize,
     voxels_from_occupancy,
 )
+from .sweep_clearance import keep_sweeps_apart
 
 log = logging.getLogger(__name__)
 
@@ -503,17 +504,20 @@ def with_visuals(
     (``clip_from_neighbours``), a drawer drawn as little more than its front given the
     body of its collision box (``drawer_body``), plus the bar the layout added (the faces
     after ``raw``'s mesh), the base's the clean base plus the clean meshes of the parts the layout
-    merged into it. A part ``clean`` lacks keeps its mesh."""
+    merged into it. A part ``clean`` lacks keeps its mesh. Visuals of two parts that
+    would sweep into each other are cut apart (``sweep_clearance.keep_sweeps_apart``)."""
     names = {p.name for p in laid.parts}
     boxes = {p.name: _primitive_box(p) for p in laid.parts[1:] if p.primitives}
-    parts = []
+    meshes: dict[str, trimesh.Trimesh] = {}
+    visuals: dict[str, trimesh.Trimesh] = {}  # movable parts' clean meshes (may be cut)
+    bars: dict[str, trimesh.Trimesh] = {}  # the layout's bar handles (not cut)
     for p in laid.parts:
         c, r = _part(clean, p.name), _part(raw, p.name)
-        mesh = p.mesh
+        meshes[p.name] = p.mesh
         if c is not None and r is not None and p is laid.parts[0]:
             merged = [q for q in raw.parts[1:] if q.name not in names]
             extra = [q.mesh for q in (_part(clean, m.name) for m in merged) if q is not None]
-            mesh = trimesh.util.concatenate([c.mesh, *extra]) if extra else c.mesh
+            meshes[p.name] = trimesh.util.concatenate([c.mesh, *extra]) if extra else c.mesh
         elif c is not None and r is not None:
             mesh = c.mesh
             if p.name in boxes:
@@ -523,10 +527,17 @@ def with_visuals(
                 body = drawer_body(mesh, _primitive_box(p), np.asarray(p.joint.axis, float))
                 if body is not None:
                     mesh = trimesh.util.concatenate([mesh, body])
+            visuals[p.name] = mesh
             n = len(r.mesh.faces)
             if len(p.mesh.faces) > n:  # the layout's bar handle
-                bar = p.mesh.submesh([np.arange(n, len(p.mesh.faces))], append=True)
-                mesh = trimesh.util.concatenate([mesh, bar])
+                bars[p.name] = p.mesh.submesh([np.arange(n, len(p.mesh.faces))], append=True)
+    joints = {p.name: p.joint for p in laid.parts}
+    visuals = keep_sweeps_apart(visuals, {k: b.bounds for k, b in bars.items()}, joints)
+    parts = []
+    for p in laid.parts:
+        mesh = visuals.get(p.name, meshes[p.name])
+        if p.name in bars:
+            mesh = trimesh.util.concatenate([mesh, bars[p.name]])
         parts.append(Part(p.name, p.semantic, mesh, p.joint, p.primitives, p.handle, p.material))
     out = ArticulatedObject(parts, laid.category, laid.scale, dict(laid.provenance))
     _floor_base_boxes(out)
