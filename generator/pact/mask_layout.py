@@ -14,7 +14,11 @@ camera (azimuth, elevation; an assumed ``FOVY`` of 45 degrees: product photos us
 their own bounding square: the photo's scale and framing are unknown), plus the share of
 the movable parts' pixels that fall on the box's front face (so the front is the face
 the parts are on). A coarse grid of views and proportions, then a coordinate search from
-the best few. On the 76 real product renders of the dev split (DEVELOPERS.md) with the
+the best few. Given the photo, a second search adds where the photo shows the edge
+between the box's front and its side (:func:`edge_score`: a box's faces are lit
+differently, so that edge shows where the silhouette cannot place it; a tall narrow box
+seen from 45 degrees has nearly the silhouette of a deeper one seen from 25), and its
+fit is taken unless it explains the silhouette clearly worse (``EDGE_IOU_SLACK``). On the 76 real product renders of the dev split (DEVELOPERS.md) with the
 box's depth left free: azimuth within 4 degrees of the true camera's (median), elevation
 within 2, height over width within 8 %, depth over width within 18 %. A near-frontal
 view says little about depth, and the free depth comes out too shallow more often than
@@ -77,6 +81,21 @@ SAMPLE_MARGIN = 1
 SILHOUETTE_MARGIN = 2  # pixels the silhouette grows by before it carves the base
 PANEL_SHARE = 0.35  # a part at most this share of the box's depth deep is a panel (door)
 MAX_DEPTH_SHARE = 0.9  # no part is deeper than this share of the box's depth
+#: weight of the photo's edge term (:func:`edge_score`, capped at ``EDGE_CAP`` and divided
+#: by it) against the silhouette IoU in a second refinement; its fit is kept when its
+#: silhouette IoU is within ``EDGE_IOU_SLACK`` of the first's (the silhouette's alone)
+EDGE_WEIGHT = 0.2
+EDGE_CAP = 3.0
+EDGE_IOU_SLACK = 0.02
+#: the photo is cropped to the silhouette's bounding square (``EDGE_PAD`` of its side
+#: around it) and resampled to ``EDGE_SIDE`` pixels before its gradient is taken
+#: (Gaussian ``EDGE_SIGMA`` pixels); an edge counts only where it is at least
+#: ``EDGE_INSET`` pixels inside the silhouette (an edge on the outline is the silhouette's)
+EDGE_SIDE = 192
+EDGE_PAD = 0.1
+EDGE_SIGMA = 1.5
+EDGE_INSET = 4
+EDGE_SAMPLES = 24  # points read along each edge, over its middle 70 %
 
 # the box's 8 corners (signs along x, y, z) and its four faces a camera in front sees
 _CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
@@ -197,19 +216,94 @@ def _scores(
     return iou + CONTAINMENT_WEIGHT * contained, iou
 
 
+@dataclass(frozen=True)
+class EdgeMap:
+    """The photo's intensity gradient (``gx``, ``gy``: along columns and rows, in units of
+    its mean magnitude inside the silhouette) on a square crop around the silhouette:
+    photo pixel (col, row) ``p`` is crop pixel ``(p - origin) * scale``; ``inner``: the
+    crop pixels at least ``EDGE_INSET`` inside the silhouette."""
+
+    gx: np.ndarray
+    gy: np.ndarray
+    inner: np.ndarray
+    origin: np.ndarray
+    scale: float
+
+
+def edge_map(image: np.ndarray, silhouette: np.ndarray) -> EdgeMap | None:
+    """The :class:`EdgeMap` of a photo (H, W, 3 or 4, or H, W) whose object covers
+    ``silhouette`` (H, W) bool; None when the shapes differ or nothing inside the
+    silhouette has a gradient."""
+    image = np.asarray(image)
+    sil = np.asarray(silhouette, bool)
+    if image.shape[:2] != sil.shape or not sil.any():
+        return None
+    grey = image[..., :3].astype(float).mean(axis=-1) if image.ndim == 3 else image.astype(float)
+    rows, cols = np.nonzero(sil)
+    side = (1.0 + 2 * EDGE_PAD) * (max(np.ptp(rows), np.ptp(cols)) + 1)
+    origin = (
+        np.array([(cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2]) - side / 2
+    )
+    scale = EDGE_SIDE / side
+    # crop pixel centres (i + 0.5) read from the photo (nearest, bilinear)
+    at = (np.arange(EDGE_SIDE) + 0.5) / scale
+    cc, rr = np.meshgrid(origin[0] + at - 0.5, origin[1] + at - 0.5)
+    crop = ndimage.map_coordinates(grey, [rr, cc], order=1, mode="nearest")
+    inside = ndimage.map_coordinates(sil.astype(float), [rr, cc], order=0, cval=0.0) > 0.5
+    smooth = ndimage.gaussian_filter(crop / 255.0, EDGE_SIGMA)
+    gx, gy = ndimage.sobel(smooth, axis=1), ndimage.sobel(smooth, axis=0)
+    inner = ndimage.binary_erosion(inside, iterations=EDGE_INSET)
+    if not inner.any():
+        return None
+    norm = float(np.hypot(gx, gy)[inner].mean())
+    if norm <= 1e-9:
+        return None
+    return EdgeMap(gx / norm, gy / norm, inner, origin, float(scale))
+
+
+def edge_score(camera: BoxCamera, edges: EdgeMap) -> float:
+    """How strongly the photo shows, where ``camera`` puts it, the box's vertical edge
+    between its front and the side the camera sees: the mean gradient across that edge
+    (``EdgeMap`` units) at ``EDGE_SAMPLES`` points along its middle, 0 where a point is
+    not inside the silhouette. Two faces of a box are lit differently, so that edge shows
+    in a photo where the silhouette cannot place it: a tall narrow box seen from 45
+    degrees has nearly the silhouette of a deeper one seen from 25. (The edge between
+    the front and the top is no help: a worktop's overhang and a drawer's top edge look
+    alike, and with it the fitted elevations on the real dev split got worse.)"""
+    hx, hy, hz = camera.half_extents
+    s = 1.0 if camera.azimuth >= 0 else -1.0  # the side the camera sees
+    t = np.linspace(0.15, 0.85, EDGE_SAMPLES)[:, None]
+    a, b = np.array([hx, s * hy, -hz]), np.array([hx, s * hy, hz])
+    px = (camera.to_pixels(a + t * (b - a)) - edges.origin) * edges.scale
+    d = px[-1] - px[0]
+    length = float(np.linalg.norm(d))
+    if length < 1.0:
+        return 0.0
+    normal = np.array([-d[1], d[0]]) / length
+    c = np.clip(np.floor(px).astype(np.int64), 0, edges.gx.shape[0] - 1)
+    rows, cols = c[:, 1], c[:, 0]
+    across = np.abs(edges.gx[rows, cols] * normal[0] + edges.gy[rows, cols] * normal[1])
+    return float(np.where(edges.inner[rows, cols], across, 0.0).mean())
+
+
 def fit_box_camera(
     mask: np.ndarray,
     movable_ids: list[int] | tuple[int, ...],
     depth: float | Sequence[float] | None = None,
     fovy: float = FOVY,
+    image: np.ndarray | None = None,
 ) -> BoxCamera:
     """The box and camera that best explain a part mask (H, W) (module docstring):
     ``movable_ids`` are the mask ids of the parts on the front; ``depth`` (the box's
     depth over its width) is fitted too when None. Given several depths, each is fitted
     and of the fits within ``DEPTH_TIE_IOU`` of the highest silhouette IoU the deepest is
-    returned (module docstring). Raises ValueError for an empty mask."""
+    returned (module docstring). With the photo ``image`` (the mask's size), a second
+    refinement also scores where the box's front/side edge falls on the photo's
+    (:func:`edge_score`, ``EDGE_WEIGHT``); its fit is returned unless its silhouette IoU
+    is more than ``EDGE_IOU_SLACK`` below the first's. Raises ValueError for an empty
+    mask."""
     if depth is not None and np.ndim(depth) > 0:
-        fits = [fit_box_camera(mask, movable_ids, float(d), fovy) for d in np.unique(depth)]
+        fits = [fit_box_camera(mask, movable_ids, float(d), fovy, image) for d in np.unique(depth)]
         best = max(f.iou for f in fits)
         return max((f for f in fits if f.iou >= best - DEPTH_TIE_IOU), key=lambda f: f.depth)
     mask = np.asarray(mask)
@@ -225,6 +319,28 @@ def fit_box_camera(
     log_h = np.linspace(*np.log(HEIGHT_RANGE), 13)
     dd, hh = (a.ravel() for a in np.meshgrid(log_d, log_h, indexing="ij"))
     half = np.stack([np.exp(dd) / 2, np.full(len(dd), 0.5), np.exp(hh) / 2], axis=1)
+    rows, cols = np.nonzero(sil)
+    centre = ((cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2)
+    side = float(max(np.ptp(rows), np.ptp(cols)) + 1)
+    edges = None if image is None else edge_map(image, sil)
+
+    def camera(x: np.ndarray, iou: float) -> BoxCamera:
+        return BoxCamera(
+            azimuth=float(x[0]),
+            elevation=float(x[1]),
+            depth=float(np.exp(x[2])),
+            height=float(np.exp(x[3])),
+            fovy=float(fovy),
+            iou=iou,
+            pixel_centre=centre,
+            pixel_side=side,
+        )
+
+    def edge_term(x: np.ndarray) -> float:
+        if edges is None:
+            return 0.0
+        return EDGE_WEIGHT * min(edge_score(camera(x, 0.0), edges), EDGE_CAP) / EDGE_CAP
+
     coarse = []
     S, P = rasters[FIT_RASTERS[0]]
     for az in np.radians(AZIMUTHS_DEG):
@@ -236,42 +352,44 @@ def fit_box_camera(
 
     S, P = rasters[FIT_RASTERS[1]]
 
-    def evaluate(x: np.ndarray) -> tuple[float, float]:
+    def evaluate(x: np.ndarray, edged: bool) -> tuple[float, float]:
         h = np.array([[np.exp(x[2]) / 2, 0.5, np.exp(x[3]) / 2]])
         score, iou = _scores(S, P, x[0], x[1], h, fovy)
-        return float(score[0]), float(iou[0])
+        return float(score[0]) + (edge_term(x) if edged else 0.0), float(iou[0])
 
-    best_x, best_score = coarse[0][1], -np.inf
-    for _, x0 in coarse[:REFINE_STARTS]:
-        x = x0.copy()
-        score = evaluate(x)[0]
-        steps = np.array([np.radians(5), np.radians(5), 0.0 if depth is not None else 0.125, 0.125])
-        for _ in range(3):  # coordinate search, the steps halved each round
-            improved = True
-            while improved:
-                improved = False
-                for k in np.flatnonzero(steps):
-                    for sign in (-1.0, 1.0):
-                        y = x.copy()
-                        y[k] += sign * steps[k]
-                        y[1] = np.clip(y[1], 0.0, np.radians(60.0))
-                        s = evaluate(y)[0]
-                        if s > score + 1e-9:
-                            x, score, improved = y, s, True
-            steps = steps / 2
-        if score > best_score:
-            best_x, best_score = x, score
-    rows, cols = np.nonzero(sil)
-    return BoxCamera(
-        azimuth=float(best_x[0]),
-        elevation=float(best_x[1]),
-        depth=float(np.exp(best_x[2])),
-        height=float(np.exp(best_x[3])),
-        fovy=float(fovy),
-        iou=evaluate(best_x)[1],
-        pixel_centre=((cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2),
-        pixel_side=float(max(np.ptp(rows), np.ptp(cols)) + 1),
-    )
+    def refine(edged: bool) -> np.ndarray:
+        best_x, best_score = coarse[0][1], -np.inf
+        for _, x0 in coarse[:REFINE_STARTS]:
+            x = x0.copy()
+            score = evaluate(x, edged)[0]
+            steps = np.array(
+                [np.radians(5), np.radians(5), 0.0 if depth is not None else 0.125, 0.125]
+            )
+            for _ in range(3):  # coordinate search, the steps halved each round
+                improved = True
+                while improved:
+                    improved = False
+                    for k in np.flatnonzero(steps):
+                        for sign in (-1.0, 1.0):
+                            y = x.copy()
+                            y[k] += sign * steps[k]
+                            y[1] = np.clip(y[1], 0.0, np.radians(60.0))
+                            s = evaluate(y, edged)[0]
+                            if s > score + 1e-9:
+                                x, score, improved = y, s, True
+                steps = steps / 2
+            if score > best_score:
+                best_x, best_score = x, score
+        return best_x
+
+    x = refine(edged=False)
+    iou = evaluate(x, False)[1]
+    if edges is not None:
+        x_edged = refine(edged=True)
+        iou_edged = evaluate(x_edged, False)[1]
+        if iou_edged >= iou - EDGE_IOU_SLACK:
+            x, iou = x_edged, iou_edged
+    return camera(x, iou)
 
 
 def depth_ratio(occ: np.ndarray) -> float | None:
@@ -302,6 +420,7 @@ def layout_from_mask(
     fovy: float = FOVY,
     fit_depth: bool = True,
     depths: Sequence[float] | None = None,
+    image: np.ndarray | None = None,
 ) -> tuple[np.ndarray, BoxCamera] | None:
     """Part occupancies (T, R, R, R) rebuilt from a box and camera fitted to the part
     mask (module docstring), and that fit; None when the sample is empty, the mask shows
@@ -313,7 +432,8 @@ def layout_from_mask(
     fits the silhouette clearly better: module docstring); each movable part keeps its
     depth in the sample
     (scaled with the box; the median of the others', or ``CARVE_DEPTH`` cells, for a
-    part the sample left empty)."""
+    part the sample left empty). ``image``: the photo, for the fit's edge term
+    (``fit_box_camera``)."""
     occ = np.asarray(occ, bool)
     mask = np.asarray(mask)
     T, R = occ.shape[0], occ.shape[1]
@@ -324,9 +444,11 @@ def layout_from_mask(
     cells = np.argwhere(union)
     extent = np.ptp(cells, axis=0) + 1
     ids = [k + 1 for k in movable]
-    camera = fit_box_camera(mask, ids, depth=[depth_ratio(occ), *(depths or [])], fovy=fovy)
+    camera = fit_box_camera(
+        mask, ids, depth=[depth_ratio(occ), *(depths or [])], fovy=fovy, image=image
+    )
     if fit_depth and camera.elevation >= DEPTH_FREE_ELEVATION:
-        free = fit_box_camera(mask, ids, fovy=fovy)
+        free = fit_box_camera(mask, ids, fovy=fovy, image=image)
         if (
             free.iou - camera.iou > DEPTH_FREE_GAIN
             and free.elevation >= DEPTH_FREE_ELEVATION

@@ -350,7 +350,7 @@ class Stage1Generator:
         boxed = np.zeros(len(occ), bool)  # laid out on a box (mask_layout): closed already
         for b, slots in enumerate(shown):
             laid = (
-                layout_from_mask(occ[b], masks[b], slots, depths=depths[b])
+                layout_from_mask(occ[b], masks[b], slots, depths=depths[b], image=images[b])
                 if self.mask_layout
                 else None
             )
