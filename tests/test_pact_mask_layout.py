@@ -10,6 +10,7 @@ import numpy as np
 
 from generator.pact.mask_agreement import view_rotation
 from generator.pact.mask_layout import (
+    BOX_IOU,
     MIN_FIT_IOU,
     BoxCamera,
     edge_map,
@@ -123,6 +124,36 @@ def test_the_photos_edges_turn_the_fit_to_the_true_view():
     assert abs(np.degrees(alone.azimuth) + 45.0) > 8.0
     assert abs(np.degrees(with_photo.azimuth) + 45.0) < 3.0
     assert with_photo.iou > alone.iou - 0.02
+
+
+def test_a_legged_tables_fit_ignores_the_photo(monkeypatch):
+    """A table (a top on four legs, a drawer under the top) is no box to the silhouette
+    (IoU below ``BOX_IOU``): where its front/side edge would be there is only background
+    between the legs, so the photo is not read (no edge score taken) and the fit is the
+    mask's; a box's fit reads it."""
+    import generator.pact.mask_layout as mask_layout
+
+    calls = []
+    score = mask_layout.edge_score
+    monkeypatch.setattr(mask_layout, "edge_score", lambda c, e: calls.append(c) or score(c, e))
+    legs = [
+        ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)
+        for sx in (-1, 1)
+        for sy in (-1, 1)
+    ]
+    table = [
+        ((-0.25, -0.5, 0.25), (0.25, 0.5, 0.4), 1),
+        *legs,
+        ((0.25, 0.1, 0.27), (0.27, 0.4, 0.38), 2),
+    ]
+    ids, photo = _raycast(table, 35.0, 15.0, shaded=True)
+    alone = fit_box_camera(ids, [2], 0.5)
+    assert alone.iou < BOX_IOU
+    assert fit_box_camera(ids, [2], 0.5, image=photo) == alone
+    assert not calls
+    ids, photo = _raycast(_chest(), 35.0, 20.0, shaded=True)
+    fit_box_camera(ids, [2, 3], 0.52, image=photo)
+    assert calls
 
 
 def test_fit_box_camera_maps_the_box_onto_the_mask():

@@ -18,7 +18,9 @@ the best few. Given the photo, a second search adds where the photo shows the ed
 between the box's front and its side (:func:`edge_score`: a box's faces are lit
 differently, so that edge shows where the silhouette cannot place it; a tall narrow box
 seen from 45 degrees has nearly the silhouette of a deeper one seen from 25), and its
-fit is taken unless it explains the silhouette clearly worse (``EDGE_IOU_SLACK``). On the 76 real product renders of the dev split (DEVELOPERS.md) with the
+fit is taken unless it explains the silhouette clearly worse (``EDGE_IOU_SLACK``). A
+legged table or desk (silhouette IoU below ``BOX_IOU``) has no such edge: between its
+legs there is only background, so its fit stays the silhouette's. On the 76 real product renders of the dev split (DEVELOPERS.md) with the
 box's depth left free: azimuth within 4 degrees of the true camera's (median), elevation
 within 2, height over width within 8 %, depth over width within 18 %. A near-frontal
 view says little about depth, and the free depth comes out too shallow more often than
@@ -297,7 +299,8 @@ def fit_box_camera(
     ``movable_ids`` are the mask ids of the parts on the front; ``depth`` (the box's
     depth over its width) is fitted too when None. Given several depths, each is fitted
     and of the fits within ``DEPTH_TIE_IOU`` of the highest silhouette IoU the deepest is
-    returned (module docstring). With the photo ``image`` (the mask's size), a second
+    returned (module docstring). With the photo ``image`` (the mask's size), when the
+    first fit explains the silhouette as a box (IoU at least ``BOX_IOU``), a second
     refinement also scores where the box's front/side edge falls on the photo's
     (:func:`edge_score`, ``EDGE_WEIGHT``); its fit is returned unless its silhouette IoU
     is more than ``EDGE_IOU_SLACK`` below the first's. Raises ValueError for an empty
@@ -384,7 +387,7 @@ def fit_box_camera(
 
     x = refine(edged=False)
     iou = evaluate(x, False)[1]
-    if edges is not None:
+    if edges is not None and iou >= BOX_IOU:
         x_edged = refine(edged=True)
         iou_edged = evaluate(x_edged, False)[1]
         if iou_edged >= iou - EDGE_IOU_SLACK:
