@@ -247,7 +247,7 @@ def edge_map(image: np.ndarray, silhouette: np.ndarray) -> EdgeMap | None:
         np.array([(cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2]) - side / 2
     )
     scale = EDGE_SIDE / side
-    # crop pixel centres (i + 0.5) read from the photo (nearest, bilinear)
+    # crop pixel centres (i + 0.5) read from the photo (bilinear; the silhouette nearest)
     at = (np.arange(EDGE_SIDE) + 0.5) / scale
     cc, rr = np.meshgrid(origin[0] + at - 0.5, origin[1] + at - 0.5)
     crop = ndimage.map_coordinates(grey, [rr, cc], order=1, mode="nearest")
@@ -325,7 +325,7 @@ def fit_box_camera(
     rows, cols = np.nonzero(sil)
     centre = ((cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2)
     side = float(max(np.ptp(rows), np.ptp(cols)) + 1)
-    edges = None if image is None else edge_map(image, sil)
+    edges: EdgeMap | None = None  # the photo's, read once the first fit sees a box
 
     def camera(x: np.ndarray, iou: float) -> BoxCamera:
         return BoxCamera(
@@ -387,7 +387,9 @@ def fit_box_camera(
 
     x = refine(edged=False)
     iou = evaluate(x, False)[1]
-    if edges is not None and iou >= BOX_IOU:
+    if image is not None and iou >= BOX_IOU:
+        edges = edge_map(image, sil)
+    if edges is not None:
         x_edged = refine(edged=True)
         iou_edged = evaluate(x_edged, False)[1]
         if iou_edged >= iou - EDGE_IOU_SLACK:
