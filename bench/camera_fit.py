@@ -7,7 +7,7 @@ For every image of the real dev split (``bench/real_split.py``; its manifest rec
 camera's azimuth and elevation), ``generator.pact.mask_layout.fit_box_camera`` fits the
 box and camera to the image's part mask, with the ground truth's depth over width given
 (so the figures are about the view, not the depth), twice: from the mask alone, and with
-the photo's edges (``image=``). Reports per style and way the mean and median absolute
+the photo's edges (``edges=edge_map(photo, silhouette)``). Reports per style and way the mean and median absolute
 azimuth and elevation errors (degrees), the number of fits off by more than 15 degrees
 of azimuth, the mean silhouette IoU and the seconds per fit, and the images whose
 azimuth is off by more than 15 degrees.
@@ -26,7 +26,7 @@ from PIL import Image
 
 from generator.articulated import load_bundle
 from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
-from generator.pact.mask_layout import fit_box_camera
+from generator.pact.mask_layout import edge_map, fit_box_camera
 
 OFF_DEG = 15.0
 
@@ -66,7 +66,8 @@ def main() -> None:
         row = {"id": im["id"], "style": im["style"]}
         for way, image in (("mask", None), ("mask+photo", photo)):
             t = time.perf_counter()
-            cam = fit_box_camera(mask, movable, depths[obj], image=image)
+            edges = None if image is None else edge_map(image, mask > 0)
+            cam = fit_box_camera(mask, movable, depths[obj], edges=edges)
             row[way] = {
                 "azimuth_error": abs(float(np.degrees(cam.azimuth)) - im["azimuth_deg"]),
                 "elevation_error": abs(float(np.degrees(cam.elevation)) - im["elevation_deg"]),

@@ -63,6 +63,21 @@ def _chest(top_id=2, bottom_id=3):
     ]
 
 
+def _table():
+    """A table 0.5 deep, 1 wide, 0.8 tall: a top on four legs, a drawer front (id 2) under
+    the top."""
+    legs = [
+        ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)
+        for sx in (-1, 1)
+        for sy in (-1, 1)
+    ]
+    return [
+        ((-0.25, -0.5, 0.25), (0.25, 0.5, 0.4), 1),
+        *legs,
+        ((0.25, 0.1, 0.27), (0.27, 0.4, 0.38), 2),
+    ]
+
+
 def test_fit_box_camera_recovers_view_and_proportions():
     mask = _raycast(_chest(), azimuth_deg=35.0, elevation_deg=20.0)
     cam = fit_box_camera(mask, [2, 3])
@@ -120,7 +135,7 @@ def test_the_photos_edges_turn_the_fit_to_the_true_view():
     ]
     ids, photo = _raycast(cabinet, -45.0, 12.0, shaded=True)
     alone = fit_box_camera(ids, [2], 0.52)
-    with_photo = fit_box_camera(ids, [2], 0.52, image=photo)
+    with_photo = fit_box_camera(ids, [2], 0.52, edges=edge_map(photo, ids > 0))
     assert abs(np.degrees(alone.azimuth) + 45.0) > 8.0
     assert abs(np.degrees(with_photo.azimuth) + 45.0) < 3.0
     assert with_photo.iou > alone.iou - 0.02
@@ -136,23 +151,14 @@ def test_a_legged_tables_fit_ignores_the_photo(monkeypatch):
     calls = []
     score = mask_layout.edge_score
     monkeypatch.setattr(mask_layout, "edge_score", lambda c, e: calls.append(c) or score(c, e))
-    legs = [
-        ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)
-        for sx in (-1, 1)
-        for sy in (-1, 1)
-    ]
-    table = [
-        ((-0.25, -0.5, 0.25), (0.25, 0.5, 0.4), 1),
-        *legs,
-        ((0.25, 0.1, 0.27), (0.27, 0.4, 0.38), 2),
-    ]
+    table = _table()
     ids, photo = _raycast(table, 35.0, 15.0, shaded=True)
     alone = fit_box_camera(ids, [2], 0.5)
     assert alone.iou < BOX_IOU
-    assert fit_box_camera(ids, [2], 0.5, image=photo) == alone
+    assert fit_box_camera(ids, [2], 0.5, edges=edge_map(photo, ids > 0)) == alone
     assert not calls
     ids, photo = _raycast(_chest(), 35.0, 20.0, shaded=True)
-    fit_box_camera(ids, [2, 3], 0.52, image=photo)
+    fit_box_camera(ids, [2, 3], 0.52, edges=edge_map(photo, ids > 0))
     assert calls
 
 
@@ -267,16 +273,7 @@ def test_layout_takes_the_candidate_depth_that_explains_the_silhouette():
 
 
 def test_layout_carves_a_table_between_its_legs():
-    legs = [
-        ((sx * 0.2 - 0.04, sy * 0.45 - 0.04, -0.4), (sx * 0.2 + 0.04, sy * 0.45 + 0.04, 0.25), 1)
-        for sx in (-1, 1)
-        for sy in (-1, 1)
-    ]
-    table = [
-        ((-0.25, -0.5, 0.25), (0.25, 0.5, 0.4), 1),
-        *legs,
-        ((0.25, 0.1, 0.27), (0.27, 0.4, 0.38), 2),
-    ]
+    table = _table()
     mask = _raycast(table, azimuth_deg=35.0, elevation_deg=15.0)
     R = 32
     occ = np.zeros((3, R, R, R), bool)

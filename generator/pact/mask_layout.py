@@ -240,18 +240,26 @@ def edge_map(image: np.ndarray, silhouette: np.ndarray) -> EdgeMap | None:
     sil = np.asarray(silhouette, bool)
     if image.shape[:2] != sil.shape or not sil.any():
         return None
-    grey = image[..., :3].astype(float).mean(axis=-1) if image.ndim == 3 else image.astype(float)
     rows, cols = np.nonzero(sil)
     side = (1.0 + 2 * EDGE_PAD) * (max(np.ptp(rows), np.ptp(cols)) + 1)
     origin = (
         np.array([(cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2]) - side / 2
     )
     scale = EDGE_SIDE / side
-    # crop pixel centres (i + 0.5) read from the photo (bilinear; the silhouette nearest)
+    # only the photo's window round the crop is read (a large photo's grey conversion
+    # costs more than the rest); crop pixel centres (i + 0.5) read from it bilinearly, the
+    # silhouette nearest
+    c0, r0 = np.maximum(np.floor(origin).astype(int) - 1, 0)
+    c1 = min(int(np.ceil(origin[0] + side)) + 2, sil.shape[1])
+    r1 = min(int(np.ceil(origin[1] + side)) + 2, sil.shape[0])
+    window = image[r0:r1, c0:c1]
+    grey = window[..., :3].astype(float).mean(axis=-1) if window.ndim == 3 else window.astype(float)
     at = (np.arange(EDGE_SIDE) + 0.5) / scale
-    cc, rr = np.meshgrid(origin[0] + at - 0.5, origin[1] + at - 0.5)
+    cc, rr = np.meshgrid(origin[0] + at - 0.5 - c0, origin[1] + at - 0.5 - r0)
     crop = ndimage.map_coordinates(grey, [rr, cc], order=1, mode="nearest")
-    inside = ndimage.map_coordinates(sil.astype(float), [rr, cc], order=0, cval=0.0) > 0.5
+    inside = (
+        ndimage.map_coordinates(sil[r0:r1, c0:c1].astype(float), [rr, cc], order=0, cval=0.0) > 0.5
+    )
     smooth = ndimage.gaussian_filter(crop / 255.0, EDGE_SIGMA)
     gx, gy = ndimage.sobel(smooth, axis=1), ndimage.sobel(smooth, axis=0)
     inner = ndimage.binary_erosion(inside, iterations=EDGE_INSET)
@@ -293,20 +301,20 @@ def fit_box_camera(
     movable_ids: list[int] | tuple[int, ...],
     depth: float | Sequence[float] | None = None,
     fovy: float = FOVY,
-    image: np.ndarray | None = None,
+    edges: EdgeMap | None = None,
 ) -> BoxCamera:
     """The box and camera that best explain a part mask (H, W) (module docstring):
     ``movable_ids`` are the mask ids of the parts on the front; ``depth`` (the box's
     depth over its width) is fitted too when None. Given several depths, each is fitted
     and of the fits within ``DEPTH_TIE_IOU`` of the highest silhouette IoU the deepest is
-    returned (module docstring). With the photo ``image`` (the mask's size), when the
+    returned (module docstring). With the photo's ``edges`` (:func:`edge_map`), when the
     first fit explains the silhouette as a box (IoU at least ``BOX_IOU``), a second
     refinement also scores where the box's front/side edge falls on the photo's
     (:func:`edge_score`, ``EDGE_WEIGHT``); its fit is returned unless its silhouette IoU
     is more than ``EDGE_IOU_SLACK`` below the first's. Raises ValueError for an empty
     mask."""
     if depth is not None and np.ndim(depth) > 0:
-        fits = [fit_box_camera(mask, movable_ids, float(d), fovy, image) for d in np.unique(depth)]
+        fits = [fit_box_camera(mask, movable_ids, float(d), fovy, edges) for d in np.unique(depth)]
         best = max(f.iou for f in fits)
         return max((f for f in fits if f.iou >= best - DEPTH_TIE_IOU), key=lambda f: f.depth)
     mask = np.asarray(mask)
@@ -325,7 +333,6 @@ def fit_box_camera(
     rows, cols = np.nonzero(sil)
     centre = ((cols.min() + cols.max() + 1) / 2, (rows.min() + rows.max() + 1) / 2)
     side = float(max(np.ptp(rows), np.ptp(cols)) + 1)
-    edges: EdgeMap | None = None  # the photo's, read once the first fit sees a box
 
     def camera(x: np.ndarray, iou: float) -> BoxCamera:
         return BoxCamera(
@@ -340,8 +347,7 @@ def fit_box_camera(
         )
 
     def edge_term(x: np.ndarray) -> float:
-        if edges is None:
-            return 0.0
+        assert edges is not None
         return EDGE_WEIGHT * min(edge_score(camera(x, 0.0), edges), EDGE_CAP) / EDGE_CAP
 
     coarse = []
@@ -387,9 +393,7 @@ def fit_box_camera(
 
     x = refine(edged=False)
     iou = evaluate(x, False)[1]
-    if image is not None and iou >= BOX_IOU:
-        edges = edge_map(image, sil)
-    if edges is not None:
+    if edges is not None and iou >= BOX_IOU:
         x_edged = refine(edged=True)
         iou_edged = evaluate(x_edged, False)[1]
         if iou_edged >= iou - EDGE_IOU_SLACK:
@@ -449,11 +453,12 @@ def layout_from_mask(
     cells = np.argwhere(union)
     extent = np.ptp(cells, axis=0) + 1
     ids = [k + 1 for k in movable]
+    edges = None if image is None else edge_map(image, mask > 0)  # one per photo
     camera = fit_box_camera(
-        mask, ids, depth=[depth_ratio(occ), *(depths or [])], fovy=fovy, image=image
+        mask, ids, depth=[depth_ratio(occ), *(depths or [])], fovy=fovy, edges=edges
     )
     if fit_depth and camera.elevation >= DEPTH_FREE_ELEVATION:
-        free = fit_box_camera(mask, ids, fovy=fovy, image=image)
+        free = fit_box_camera(mask, ids, fovy=fovy, edges=edges)
         if (
             free.iou - camera.iou > DEPTH_FREE_GAIN
             and free.elevation >= DEPTH_FREE_ELEVATION
