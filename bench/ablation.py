@@ -31,7 +31,7 @@ from PIL import Image
 from rich.console import Console
 from rich.table import Table
 
-from generator.articulated import save_bundle
+from generator.bundle import save_bundle
 from generator.data.test_split import write_test_split
 from generator.metrics import evaluate_dirs
 
@@ -43,7 +43,7 @@ def gt_occupancy(oid: str, max_parts: int) -> np.ndarray:
     from generator.data.encode import normalization
     from generator.data.geometry import occupancy
     from generator.data.render import part_slots
-    from generator.pact.slat_data import object_from_id
+    from generator.pact.training.stage2_data import object_from_id
 
     obj = object_from_id(oid)
     norm = normalization(obj)
@@ -79,7 +79,7 @@ def main() -> None:
 
     torch.set_num_threads(args.threads)
 
-    from generator.pact.generate import PActGenerator
+    from generator.pact.inference.generate import PActGenerator
 
     ids = write_test_split(args.split_dir, args.per_category)
     if args.limit:

@@ -17,10 +17,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from asset_pipeline.build import build_asset
-from asset_pipeline.collision import CoacdParams, coacd_pieces, primitive_pieces
-from asset_pipeline.mesh import to_metric
-from generator.articulated import save_bundle
+from asset_pipeline.assets.build import build_asset
+from asset_pipeline.geometry.coacd_collision import CoacdParams, coacd_pieces, primitive_pieces
+from asset_pipeline.geometry.metric import to_metric
+from generator.bundle import save_bundle
 from generator.procedural import CATEGORIES, object_id, sample_object
 
 

@@ -4,7 +4,7 @@
         [--styles product room] [--limit N]
 
 For every image of the real dev split (``bench/real_split.py``; its manifest records the
-camera's azimuth and elevation), ``generator.pact.mask_layout.fit_box_camera`` fits the
+camera's azimuth and elevation), ``generator.pact.inference.mask_layout.fit_box_camera`` fits the
 box and camera to the image's part mask, with the ground truth's depth over width given
 (so the figures are about the view, not the depth), twice: from the mask alone, and with
 the photo's edges (``edges=edge_map(photo, silhouette)``). Reports per style and way the mean and median absolute
@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from generator.articulated import load_bundle
+from generator.bundle import load_bundle
 from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
-from generator.pact.mask_layout import edge_map, fit_box_camera
+from generator.pact.inference.mask_layout import edge_map, fit_box_camera
 
 OFF_DEG = 15.0
 

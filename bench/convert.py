@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from asset_pipeline.batch import STAGES, ConvertSettings, run_convert
+from asset_pipeline.catalog.batch import STAGES, ConvertSettings, run_convert
 
 
 def replicate(src: Path, dst: Path, repeat: int) -> int:

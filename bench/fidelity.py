@@ -5,7 +5,7 @@
         [--gen-cache runs/fidelity/gen-cache] [--per-category 6] [--limit N]
 
 Converts the fixed test split (``generator.data.test_split``, written on first use) and/or
-the bundled examples (``examples/images``) with ``asset_pipeline.batch.run_convert``
+the bundled examples (``examples/images``) with ``asset_pipeline.catalog.batch.run_convert``
 (validation and previews on, one worker) into ``OUT/<generator>-<texture|baseline>-<set>/``
 and prints, per set: mean and median silhouette IoU, part-mask IoU, PSNR and SSIM inside
 the photo's silhouette (and PSNR where both silhouettes overlap), the fidelity score, the
@@ -39,10 +39,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from asset_pipeline import batch  # noqa: E402
-from asset_pipeline.batch import ConvertSettings, run_convert  # noqa: E402
+from asset_pipeline.catalog import batch  # noqa: E402
+from asset_pipeline.catalog.batch import ConvertSettings, run_convert  # noqa: E402
 from asset_pipeline.validate import read_report  # noqa: E402
-from generator.articulated import ArticulatedObject, load_bundle, save_bundle  # noqa: E402
+from generator.articulated import ArticulatedObject  # noqa: E402
+from generator.bundle import load_bundle, save_bundle  # noqa: E402
 
 
 class CachedGenerator:
@@ -82,7 +83,7 @@ class CachedGenerator:
 
 
 def use_cache(generator: str, cache: Path) -> CachedGenerator:
-    """Make ``asset_pipeline.batch`` use a cached ``generator`` in this process."""
+    """Make ``asset_pipeline.catalog.batch`` use a cached ``generator`` in this process."""
     inner = batch.load_generator(generator)
     cached = CachedGenerator(inner, cache / generator)
     batch._GENERATOR_CACHE[generator] = cached
@@ -161,7 +162,7 @@ def summarize(out: Path, results: list) -> dict[str, Any]:
 def rescore(out: Path) -> list[Any]:
     """Score every catalogued asset of ``out`` again; results as ``run_convert`` gives them
     (the fidelity stage's seconds are the new ones)."""
-    from asset_pipeline.catalog import Catalog
+    from asset_pipeline.catalog.registry import Catalog
 
     results = []
     with Catalog(out, readonly=True) as cat:

@@ -43,7 +43,7 @@ from PIL import Image
 from rich.console import Console
 from rich.table import Table
 
-from generator.articulated import load_bundle, save_bundle
+from generator.bundle import load_bundle, save_bundle
 from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
 from generator.data.test_split import write_test_split
 from generator.metrics import (
@@ -67,7 +67,7 @@ def load_generator(name: str, weights: Path | None = None, one_sample: bool = Fa
         from generator.retrieval import RetrievalGenerator
 
         return RetrievalGenerator.default()
-    from generator.pact.generate import WEIGHTS_DIR, PActGenerator
+    from generator.pact.inference.generate import WEIGHTS_DIR, PActGenerator
 
     return PActGenerator.load(
         WEIGHTS_DIR / "small" if weights is None else weights,

@@ -9,11 +9,11 @@ optionally the first N product photos of the real dev split) stage 1 and stage 2
 once (``PActGenerator.run``); the decoded SDF is then meshed twice from the same
 latents (``PActGenerator.mesh_parts``): ``raw`` (the marching cubes of the decoded SDF,
 as before the clean-geometry change) and ``clean`` (the stage-1 occupancy fixes the
-topology, ``generator.pact.slat_vae.constrain_sdf``, then ``part_cleaning.clean_mesh``).
+topology, ``generator.pact.model.slat_vae.constrain_sdf``, then ``part_cleaning.clean_mesh``).
 Each is assembled (``assemble``, the network output) and given the box layout as
 ``PActGenerator.generate`` does (what ``pact convert`` builds): ``raw`` the layout of
 the raw meshes, ``clean`` that same layout with the clean meshes as visuals
-(``generator.pact.generate.with_visuals``).
+(``generator.pact.inference.generate.with_visuals``).
 
 Per object and mode, on the assembled object: pieces of every movable part
 (``len(mesh.split(only_watertight=False))``), whether it is one piece (a second piece
@@ -42,12 +42,13 @@ import torch
 from PIL import Image
 from scipy import ndimage
 
-from generator.articulated import ArticulatedObject, load_bundle
+from generator.articulated import ArticulatedObject
 from generator.box_layout import fit_box_layout
-from generator.mesh_repair import is_closed
+from generator.bundle import load_bundle
+from generator.mesh_repair.cleaning import TOUCH, groups, is_handle, pieces
+from generator.mesh_repair.closing import is_closed
 from generator.metrics import METRIC_KEYS, MetricError, evaluate_pair
-from generator.pact.generate import with_visuals
-from generator.part_cleaning import TOUCH, groups, is_handle, pieces
+from generator.pact.inference.generate import with_visuals
 
 MODES = ("raw", "clean")
 
@@ -187,7 +188,7 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
 
-    from generator.pact.generate import PActGenerator
+    from generator.pact.inference.generate import PActGenerator
 
     gen = PActGenerator.default()
     sources: dict[str, list[tuple[str, Path, Any]]] = {}

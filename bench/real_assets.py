@@ -1,7 +1,7 @@
 """Real artist-made objects made sim-ready: import, build, validate, open; prints JSON.
 
 Runs the path an outside user takes with PartNet-Mobility objects:
-``pact import DATA --out OUT`` (asset_pipeline.partnet), then for every bundle
+``pact import DATA --out OUT`` (asset_pipeline.importers.partnet), then for every bundle
 ``build_asset`` + ``validate_asset`` (timed: the build includes the articulation-aware
 collision boxes; a second build of the first ``--rebuild`` objects measures the cache
 hit) and, unless ``--no-solver``, the scripted Panda on every movable part
@@ -67,11 +67,11 @@ def main() -> None:
 
     import shutil
 
-    from asset_pipeline.build import BuildOptions, build_asset, prepare_object
-    from asset_pipeline.partnet import find_objects, import_objects
+    from asset_pipeline.assets.build import BuildOptions, build_asset, prepare_object
+    from asset_pipeline.geometry.voxel_collision import articulated_boxes, coverage
+    from asset_pipeline.importers.partnet import find_objects, import_objects
     from asset_pipeline.validate import validate_asset
-    from asset_pipeline.voxel_collision import articulated_boxes, coverage
-    from generator.articulated import load_bundle
+    from generator.bundle import load_bundle
 
     excluded = _ids(args.exclude)
     folders = [f for f in find_objects(args.data) if f.name not in excluded]

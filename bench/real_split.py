@@ -5,7 +5,7 @@
 
 Every object folder listed in DATA/index.json (else every PartNet-Mobility folder under
 DATA) that is not in ``--exclude`` (default /work/shared/excluded-partnet-ids.txt; those
-ids are never opened) is imported with ``asset_pipeline.partnet.convert_object``
+ids are never opened) is imported with ``asset_pipeline.importers.partnet.convert_object``
 (default options: normalized, ``scale = None``) and rendered by
 ``generator.data.real_split.write_real_split`` in both styles, ``--views`` views each.
 Objects the importer refuses (nothing to articulate) are listed under ``failed`` in
@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from asset_pipeline.partnet import PartnetOptions, convert_object, find_objects  # noqa: E402
+from asset_pipeline.importers.partnet import PartnetOptions, convert_object, find_objects  # noqa: E402
 from generator.data.real_split import (  # noqa: E402
     DEFAULT_REAL_SPLIT,
     STYLES,

@@ -31,8 +31,8 @@ def build_procedural(
     split: str = "train",
     seed0: int = 0,
 ) -> Path:
-    from asset_pipeline.build import build_asset
-    from generator.articulated import save_bundle
+    from asset_pipeline.assets.build import build_asset
+    from generator.bundle import save_bundle
     from generator.procedural import object_id, sample_object
 
     for c in categories:

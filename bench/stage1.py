@@ -38,7 +38,8 @@ from scipy.optimize import linear_sum_assignment
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from generator.articulated import ArticulatedObject, load_bundle  # noqa: E402
+from generator.articulated import ArticulatedObject  # noqa: E402
+from generator.bundle import load_bundle  # noqa: E402
 from generator.data.geometry import occupancy  # noqa: E402
 from generator.data.render import part_slots  # noqa: E402
 from generator.metrics import evaluate_pair, normalization  # noqa: E402
@@ -98,7 +99,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     from generator.data.test_split import write_test_split
-    from generator.pact.stage1_generator import Stage1Generator
+    from generator.pact.inference.stage1_generator import Stage1Generator
 
     split = Path(args.split)
     ids = write_test_split(split, per_category=args.per_category)[: args.limit]

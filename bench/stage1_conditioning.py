@@ -29,10 +29,10 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from stage1 import part_grids  # noqa: E402
 
-from generator.articulated import load_bundle  # noqa: E402
-from generator.pact.flow import noisy  # noqa: E402
-from generator.pact.preprocess import encoder_inputs  # noqa: E402
-from generator.pact.stage1_generator import Stage1Generator  # noqa: E402
+from generator.bundle import load_bundle  # noqa: E402
+from generator.pact.inference.stage1_generator import Stage1Generator  # noqa: E402
+from generator.pact.model.flow import noisy  # noqa: E402
+from generator.pact.model.preprocess import encoder_inputs  # noqa: E402
 
 TIMES = (0.9, 1.0)
 CONDITIONS = ("image+mask", "image", "none")

@@ -4,7 +4,7 @@ real dev split (or the test split). Prints JSON, then a table.
     .venv/bin/python bench/training_curve.py --run RUN [--init generator/pact/weights/small/stage1]
         [--split real] [--styles product] [--limit N] [--work runs/curve]
 
-``RUN`` is a ``generator.pact.train`` run folder trained with ``--snapshot-every K``: every
+``RUN`` is a ``generator.pact.training.train_stage1`` run folder trained with ``--snapshot-every K``: every
 ``RUN/flow/snapshots/step_<k>/stage1`` is scored. Each snapshot becomes a weights folder
 ``WORK/<run name>_<split>[_<styles>][_first<N>]_samples_<n>/`` laid out as generator/pact/weights/small: the shipped
 networks (``--base``) with the snapshot's stage 1 in place of the shipped one, and is
@@ -30,7 +30,7 @@ from gen_quality import run as run_gen_quality  # noqa: E402
 
 from generator.data.real_split import DEFAULT_REAL_SPLIT  # noqa: E402
 from generator.metrics import METRIC_KEYS  # noqa: E402
-from generator.pact.generate import WEIGHTS_DIR  # noqa: E402
+from generator.pact.inference.generate import WEIGHTS_DIR  # noqa: E402
 
 NETWORKS = ("ss_vae", "slat_vae", "stage2", "foreground", "stage1_head")
 

@@ -31,9 +31,9 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="Build into this folder and keep it.")
     args = ap.parse_args()
 
-    from asset_pipeline.build import build_asset
+    from asset_pipeline.assets.build import build_asset
     from asset_pipeline.validate import STAGES, validate_asset
-    from generator.articulated import save_bundle
+    from generator.bundle import save_bundle
     from generator.procedural import CATEGORIES, sample_object
 
     cats = list(CATEGORIES)

@@ -66,9 +66,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from .articulated import ArticulatedObject, Joint, Part
-from .procedural.blocks import HandleStyle, slab_with_handle
-from .procedural.solids import box
+from generator.articulated import ArticulatedObject, Joint, Part
+from generator.procedural.blocks import HandleStyle, slab_with_handle
+from generator.procedural.solids import box
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +101,7 @@ FLUSH = 0.5
 #: of its slot within a few centimetres (at its limit, less of it than the validation's
 #: ``drawer_engaged`` wants stays inside the base). Real drawers reach most of the way
 #: back (0.82 of the depth on the real dev split, median) and the generated drawer's
-#: visual gets this body too (``generator.pact.generate.drawer_body``).
+#: visual gets this body too (``generator.pact.inference.generate.drawer_body``).
 DRAWER_BODY = 0.75
 #: A bar handle on every part without one (m): length, radius, standoff of the bar's
 #: axis from the face, and (doors) its distance from the free edge.

@@ -115,13 +115,8 @@ from rich.table import Table
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from generator.articulated import (
-    ArticulatedObject,
-    Joint,
-    ObjectModelError,
-    find_bundles,
-    load_bundle,
-)
+from generator.articulated import ArticulatedObject, Joint, ObjectModelError
+from generator.bundle import find_bundles, load_bundle
 
 log = logging.getLogger(__name__)
 

@@ -39,15 +39,9 @@ import trimesh
 from PIL import Image
 from scipy.optimize import linear_sum_assignment
 
-from generator.articulated import (
-    ArticulatedObject,
-    Handle,
-    Joint,
-    Part,
-    Primitive,
-    atomic_write_bytes,
-)
-from generator.part_cleaning import clean_parts
+from generator.articulated import ArticulatedObject, Handle, Joint, Part, Primitive
+from generator.atomic_files import atomic_write_bytes
+from generator.mesh_repair.cleaning import clean_parts
 
 log = logging.getLogger(__name__)
 

@@ -35,12 +35,12 @@ console = Console(stderr=True, soft_wrap=True)
 def _user_errors() -> tuple[type[BaseException], ...]:
     """The typed errors whose message names the file and says what to do: shown as one
     ``error:`` line, never as a traceback."""
-    from asset_pipeline.asset_io import AssetFormatError
-    from asset_pipeline.batch import OutputFolderError, OutputLockedError
-    from asset_pipeline.build import BuildError
-    from asset_pipeline.catalog import CatalogError
-    from asset_pipeline.importers import ImportFormatError
-    from asset_pipeline.inputs import InputError
+    from asset_pipeline.assets.build import BuildError
+    from asset_pipeline.assets.layout import AssetFormatError
+    from asset_pipeline.catalog.batch import OutputFolderError, OutputLockedError
+    from asset_pipeline.catalog.registry import CatalogError
+    from asset_pipeline.importers.source_format import ImportFormatError
+    from asset_pipeline.inputs.errors import InputError
     from asset_pipeline.validate import ReportFormatError
     from generator.articulated import ObjectModelError
     from generator.data import DatasetError
@@ -107,7 +107,7 @@ def sample(
     split: str = typer.Option("train", "--split", help="Parameter ranges: train or test."),
 ) -> None:
     """Sample seeded procedural articulated objects as bundles in OUT/<id>/."""
-    from generator.articulated import save_bundle
+    from generator.bundle import save_bundle
     from generator.procedural import UnknownCategoryError, object_id, sample_object
 
     cats = list(CATEGORIES) if category == "all" else [category]
@@ -141,7 +141,7 @@ def eval_gen(
     """Generation metrics (RS/AS dgIoU, dcDist, dCD, AOR) of predictions against ground truth."""
     import json
 
-    from generator.articulated import atomic_write_bytes
+    from generator.atomic_files import atomic_write_bytes
     from generator.metrics import evaluate_dirs, format_table
 
     results = evaluate_dirs(pred, gt, n_states=n_states, n_points=n_points, seed=seed)
@@ -153,7 +153,7 @@ def eval_gen(
         raise typer.Exit(1)
 
 
-#: --collision values -> asset_pipeline.build collision methods.
+#: --collision values -> asset_pipeline.assets.build collision methods.
 COLLISION_OPTIONS = {"auto": "auto", "mesh": "voxel", "voxel": "voxel", "coacd": "coacd"}
 
 
@@ -166,7 +166,7 @@ def _build_one(
     bundle: Path, height: float | None, validate: bool, repair: bool, collision: str
 ) -> tuple[str, str]:
     """Build (and validate) one bundle; return (status, detail)."""
-    from asset_pipeline.build import BuildOptions, build_asset
+    from asset_pipeline.assets.build import BuildOptions, build_asset
 
     result = build_asset(bundle, height=height, options=BuildOptions(collision=collision))
     detail = f"{sum(result.pieces.values())} pieces, {result.seconds:.1f} s"
@@ -207,9 +207,10 @@ def build(
     """
     import contextlib
 
-    from asset_pipeline.batch import output_lock
-    from asset_pipeline.catalog import Catalog
-    from generator.articulated import ObjectModelError, find_bundles, is_bundle
+    from asset_pipeline.catalog.batch import output_lock
+    from asset_pipeline.catalog.registry import Catalog
+    from generator.articulated import ObjectModelError
+    from generator.bundle import find_bundles, is_bundle
 
     check_collision(collision)
     bundles: list[Path] = []
@@ -249,8 +250,9 @@ def _build_all(
     bad: list[tuple[str, str]],
 ) -> None:
     """Build every bundle, print the table, register each result in its catalog."""
-    from asset_pipeline.catalog import register_asset_dir
-    from generator.articulated import ObjectModelError, load_bundle
+    from asset_pipeline.catalog.registry import register_asset_dir
+    from generator.articulated import ObjectModelError
+    from generator.bundle import load_bundle
 
     table = Table(title="pact build")
     for col in ("asset", "status", "detail"):
@@ -348,7 +350,7 @@ def ls(
     ),
 ) -> None:
     """List catalogued assets."""
-    from asset_pipeline.catalog import Catalog, CatalogError, format_table
+    from asset_pipeline.catalog.registry import Catalog, CatalogError, format_table
 
     try:
         with Catalog(out, readonly=True) as cat:
@@ -398,8 +400,10 @@ def import_(
     some failed, 2 when nothing could be imported. Each added grip is reported
     (``grip PATH: part: ...``).
     """
-    from asset_pipeline.importers import ImportFormatError, ImportOptions, import_path
-    from asset_pipeline.partnet import GRIP_NOTE
+    from asset_pipeline.importers import import_path
+    from asset_pipeline.importers.diffuse_tree import ImportOptions
+    from asset_pipeline.importers.partnet import GRIP_NOTE
+    from asset_pipeline.importers.source_format import ImportFormatError
 
     if height is not None and not 0 < height <= 10:
         raise fail(f"--height: must be the object's height in metres, in (0, 10]; got {height}")
@@ -442,8 +446,8 @@ def gallery(
 ) -> None:
     """Write OUT/index.html: photo, photo view, previews, fidelity, joints, validation status
     and a 3D view with joint sliders per asset."""
-    from asset_pipeline.catalog import CatalogError
-    from asset_pipeline.gallery import gallery_server, write_gallery
+    from asset_pipeline.catalog.registry import CatalogError
+    from asset_pipeline.gallery.page import gallery_server, write_gallery
 
     try:
         print(write_gallery(out))
@@ -513,14 +517,14 @@ def convert(
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from asset_pipeline.batch import (
+    from asset_pipeline.catalog.batch import (
         ConvertSettings,
         OutputFolderError,
         OutputLockedError,
         run_convert,
     )
-    from asset_pipeline.catalog import CatalogError
-    from asset_pipeline.inputs import InputError
+    from asset_pipeline.catalog.registry import CatalogError
+    from asset_pipeline.inputs.errors import InputError
 
     check_collision(collision)
     settings = ConvertSettings(
@@ -671,7 +675,7 @@ def check_tasks_cmd(
         f"{summary['opened_where_placed']} without moving the robot's base)"
     )
     if out is not None:
-        from generator.articulated import atomic_write_bytes
+        from generator.atomic_files import atomic_write_bytes
 
         atomic_write_bytes(
             out, json.dumps({**summary, "results": [asdict(r) for r in results]}, indent=2).encode()
@@ -775,10 +779,10 @@ def train_gen(
     Never writes into generator/pact/weights/ unless --write-shipped-weights is given.
     Stage 1 runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
     """
-    from generator.pact.checkpoint import check_output_dir
+    from generator.pact.model.checkpoint import check_output_dir
 
     if stage == 2:
-        from generator.pact.train_stage2 import main as train_stage2
+        from generator.pact.training.train_stage2 import main as train_stage2
 
         argv = [what, "--data", str(data), "--cache", str(cache)]
         argv += ["--out", str(out or "runs/pact/stage2/weights")]
@@ -795,7 +799,7 @@ def train_gen(
             argv.append("--write-shipped-weights")
         train_stage2(argv)
         return
-    from generator.pact.train import train_stage1
+    from generator.pact.training.train_stage1 import train_stage1
 
     out = out or Path("runs/pact/stage1")
     try:

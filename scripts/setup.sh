@@ -80,7 +80,7 @@ fi
 
 # 5. three.js for the gallery's 3D view (npm registry; not kept in the repository) -----
 THREE_VERSION=0.187.0
-THREE_DIR=asset_pipeline/gallery_web/three
+THREE_DIR=asset_pipeline/gallery/web/three
 if [ -f "$THREE_DIR/VERSION" ] && [ "$(cat "$THREE_DIR/VERSION")" = "$THREE_VERSION" ]; then
   log "three.js $THREE_VERSION: ok"
 elif command -v npm >/dev/null 2>&1; then

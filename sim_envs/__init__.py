@@ -3,11 +3,11 @@
 - :mod:`sim_envs.asset_sources`: where assets come from (a folder, a catalog or a
   list), filtered by category and joint type;
 - :mod:`sim_envs.scene`: loading one asset into a ManiSkill scene (fixed base,
-  friction material and collision policy from asset_pipeline.sim_options)
+  friction material and collision policy from asset_pipeline.simulation.sim_options)
   and placement helpers.
 """
 
-from asset_pipeline.built_asset import BuiltAsset, MovablePart
+from asset_pipeline.assets.built_asset import BuiltAsset, MovablePart
 from sim_envs.asset_sources import (
     AssetSource,
     AssetSourceError,

@@ -1,14 +1,14 @@
 """Where task environments find built assets: a folder of assets, a catalog, or a list.
 
 An :class:`AssetSource` lists the usable built assets
-(:class:`~asset_pipeline.built_asset.BuiltAsset`, read with
+(:class:`~asset_pipeline.assets.built_asset.BuiltAsset`, read with
 :func:`asset_pipeline.asset_io.load_asset`), optionally filtered by category and by
 the joint type of their movable parts:
 
 - :class:`FolderSource` scans the sub-folders of a directory (or takes one asset
   folder) and skips assets whose ``report.json`` says validation failed;
 - :class:`CatalogSource` takes the assets an SQLite catalog
-  (:class:`asset_pipeline.catalog.Catalog`) lists as ``ok`` or ``repaired``;
+  (:class:`asset_pipeline.catalog.registry.Catalog`) lists as ``ok`` or ``repaired``;
 - :class:`ListSource` takes an explicit list of asset folders.
 
 :func:`open_source` picks the right one for a path.
@@ -21,9 +21,10 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from asset_pipeline.asset_io import ASSET_JSON_NAME, AssetFormatError, load_asset
-from asset_pipeline.built_asset import BuiltAsset
-from asset_pipeline.catalog import CATALOG_NAME, Catalog, CatalogError
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.assets.folder import load_asset
+from asset_pipeline.assets.layout import ASSET_JSON_NAME, AssetFormatError
+from asset_pipeline.catalog.registry import CATALOG_NAME, Catalog, CatalogError
 from asset_pipeline.validate import ReportFormatError, read_report
 
 log = logging.getLogger(__name__)

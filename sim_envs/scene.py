@@ -1,7 +1,7 @@
 """Load built assets into ManiSkill3 scenes: fixed base, materials, collision groups, placement.
 
-Physics options come from :mod:`asset_pipeline.sim_options` (the same
-:class:`~asset_pipeline.sim_options.SimOptions` validation proves assets with):
+Physics options come from :mod:`asset_pipeline.simulation.sim_options` (the same
+:class:`~asset_pipeline.simulation.sim_options.SimOptions` validation proves assets with):
 friction material, contact offsets, solver iterations and the object's collision
 policy (by default sibling parts collide with each other and with the robot; a
 part never collides with its parent, PhysX skips that pair).
@@ -23,9 +23,9 @@ import numpy as np
 import sapien
 import torch
 
-from asset_pipeline.built_asset import BuiltAsset
-from asset_pipeline.sapien_loading import articulation_builder
-from asset_pipeline.sim_options import (
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.simulation.sapien_scenes import articulation_builder
+from asset_pipeline.simulation.sim_options import (
     DEFAULT_SIM_OPTIONS,
     OBJECT_IGNORE_BIT,
     SimOptions,
@@ -51,7 +51,7 @@ def add_to_scene(
 ) -> Articulation:
     """Build ``asset`` as a fixed-base articulation in the sub-scenes ``scene_idxs``.
 
-    The one SAPIEN loader (:func:`asset_pipeline.sapien_loading.articulation_builder`),
+    The one SAPIEN loader (:func:`asset_pipeline.simulation.sapien_scenes.articulation_builder`),
     through ManiSkill's URDF loader. Links keep their URDF (part) names. Must run while
     the scene is being built (``_load_scene``), before GPU setup.
     """
@@ -80,7 +80,7 @@ def floor_lift(asset: BuiltAsset, steps: int = 24) -> float:
     below the rest minimum over each movable joint's range (``steps`` values, the other
     joints closed), plus ``FLOOR_CLEARANCE``; 0 when nothing dips.
     """
-    from asset_pipeline.asset_io import link_piece_vertices
+    from asset_pipeline.assets.mesh_files import link_piece_vertices
 
     verts = link_piece_vertices(asset)
 

@@ -43,8 +43,8 @@ from mani_skill.utils.building.ground import build_ground
 from mani_skill.utils.structs import Articulation, Link, Pose
 from mani_skill.utils.structs.types import GPUMemoryConfig, SimConfig
 
-from asset_pipeline.built_asset import BuiltAsset, MovablePart
-from asset_pipeline.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
+from asset_pipeline.assets.built_asset import BuiltAsset, MovablePart
+from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
 from sim_envs.asset_sources import AssetSource, open_source
 from sim_envs.scene import (
     add_to_scene,

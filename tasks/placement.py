@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from asset_pipeline.built_asset import MovablePart
+from asset_pipeline.assets.built_asset import MovablePart
 
 READY_TCP = np.array([0.615, 0.0, 0.818])  # tcp in the robot base frame at READY_QPOS (FK)
 SHOULDER_HEIGHT = 0.333  # panda_link2 above the base

@@ -80,7 +80,7 @@ import gymnasium as gym
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from asset_pipeline.built_asset import BuiltAsset
+from asset_pipeline.assets.built_asset import BuiltAsset
 from sim_envs.asset_sources import ListSource, open_source
 from tasks.placement import (
     PUSH_MARGIN,

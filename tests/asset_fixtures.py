@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from asset_pipeline.asset_io import save_asset
-from asset_pipeline.built_asset import (
+from asset_pipeline.assets.built_asset import (
     BuiltAsset,
     CollisionPiece,
     Handle,
@@ -18,6 +17,7 @@ from asset_pipeline.built_asset import (
     Link,
     Visual,
 )
+from asset_pipeline.assets.folder import save_asset
 from asset_pipeline.validate import Check, RepairRecord, Report, write_report
 
 

@@ -17,10 +17,8 @@ from generator.articulated import (
     ObjectModelError,
     Part,
     Primitive,
-    find_bundles,
-    load_bundle,
-    save_bundle,
 )
+from generator.bundle import find_bundles, load_bundle, save_bundle
 
 
 def _box(extents, centre, rgba) -> trimesh.Trimesh:

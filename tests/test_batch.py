@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from asset_pipeline.batch import ConvertSettings, run_convert
-from asset_pipeline.catalog import Catalog
+from asset_pipeline.catalog.batch import ConvertSettings, run_convert
+from asset_pipeline.catalog.registry import Catalog
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
 FAST = ConvertSettings(generator="retrieval", validate=False, preview=False)

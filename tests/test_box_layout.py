@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
+from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import (
     BACK_WALL,
     DRAWER_BODY,
@@ -20,6 +20,7 @@ from generator.box_layout import (
     fit_box_layout,
     robust_bounds,
 )
+from generator.bundle import save_bundle
 
 GAP = 0.01
 
@@ -284,7 +285,7 @@ def test_messy_generated_object_validates_in_sapien_after_the_layout(tmp_path):
     """Parts like a generator's: drawers overlapping each other and the base, a tilted
     slide axis, a door hinge inside its panel and a range past 90 degrees. The layout
     makes it pass every SAPIEN check (rest, sweeps, all open, drives, free base)."""
-    from asset_pipeline.build import build_asset
+    from asset_pipeline.assets.build import build_asset
     from asset_pipeline.validate import validate_asset
 
     base = Part("base", "base", _box((-0.25, -0.45, -0.5), (0.25, 0.45, 0.5)))

@@ -19,11 +19,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline.asset_io import load_asset
-from asset_pipeline.build import BuildError, BuildOptions, build_asset
-from asset_pipeline.collision import MAX_HULL_VERTICES
-from asset_pipeline.rig import fallback_handle
-from asset_pipeline.sapien_loading import collision_shape_counts, load_articulation, make_scene
+from asset_pipeline.assets.build import BuildError, BuildOptions, build_asset
+from asset_pipeline.assets.folder import load_asset
+from asset_pipeline.assets.rig import fallback_handle
+from asset_pipeline.geometry.coacd_collision import MAX_HULL_VERTICES
+from asset_pipeline.simulation.sapien_scenes import (
+    collision_shape_counts,
+    load_articulation,
+    make_scene,
+)
 from generator.articulated import (
     ArticulatedObject,
     Handle,
@@ -31,8 +35,8 @@ from generator.articulated import (
     ObjectModelError,
     Part,
     Primitive,
-    save_bundle,
 )
+from generator.bundle import save_bundle
 
 H = 0.8  # design height (m)
 DRAWER_UPPER = 0.30
@@ -110,7 +114,7 @@ def design_cabinet() -> ArticulatedObject:
 
 def normalized_cabinet() -> ArticulatedObject:
     """The design cabinet scaled by 1/H into the unit cube, z centred, ``scale=None``."""
-    from asset_pipeline.mesh import transform_object
+    from asset_pipeline.geometry.metric import transform_object
 
     obj = transform_object(design_cabinet(), 1.0 / H, np.array([0.0, 0.0, -0.5]))
     obj.scale = None
@@ -302,7 +306,7 @@ def test_mjcf_mujoco(built):
 
 
 def test_rebuild_identical_cached_and_clean(built, tmp_path, monkeypatch):
-    from asset_pipeline import collision
+    from asset_pipeline.geometry import coacd_collision as collision
 
     result, opts, _ = built
     d = result.directory

@@ -1,4 +1,4 @@
-"""asset_pipeline.collision: exact primitive pieces, bounded hulls, cached CoACD, fallbacks."""
+"""asset_pipeline.geometry.coacd_collision: exact primitive pieces, bounded hulls, cached CoACD, fallbacks."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline import collision
-from asset_pipeline.collision import (
+from asset_pipeline.geometry import coacd_collision as collision
+from asset_pipeline.geometry.coacd_collision import (
     MAX_HULL_VERTICES,
     CoacdFailed,
     CoacdParams,

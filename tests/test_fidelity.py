@@ -1,4 +1,4 @@
-"""Fidelity (asset_pipeline.fidelity): metrics, report.json, the catalog, pact ls, convert."""
+"""Fidelity (asset_pipeline.photo.fidelity): metrics, report.json, the catalog, pact ls, convert."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import pytest
 from asset_fixtures import write_two_part_cabinet
 from typer.testing import CliRunner
 
-from asset_pipeline.catalog import Catalog, format_table, register_asset_dir
-from asset_pipeline.fidelity import (
+from asset_pipeline.catalog.registry import Catalog, format_table, register_asset_dir
+from asset_pipeline.photo.camera import silhouette_iou
+from asset_pipeline.photo.fidelity import (
     FidelityThresholds,
     compare,
     fidelity_score,
@@ -21,7 +22,6 @@ from asset_pipeline.fidelity import (
     render_device_available,
     ssim,
 )
-from asset_pipeline.photo_camera import silhouette_iou
 from asset_pipeline.validate import read_report, write_report
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
@@ -111,7 +111,7 @@ def test_report_and_catalog_carry_fidelity(tmp_path):
 def test_convert_records_fidelity_and_ls_filters_on_it(tmp_path):
     if not render_device_available():
         pytest.skip("no Vulkan render device (install Mesa lavapipe >= 24.3, see FIELD-NOTES)")
-    from asset_pipeline.batch import ConvertSettings, run_convert
+    from asset_pipeline.catalog.batch import ConvertSettings, run_convert
     from pact_cli.main import app
 
     images = tmp_path / "in"

@@ -17,12 +17,12 @@ import trimesh
 from asset_fixtures import write_box_cabinet, write_two_part_cabinet
 from PIL import Image
 
-from asset_pipeline.catalog import Catalog, register_asset_dir
-from asset_pipeline.gallery import Shot, screenshots, serving, write_gallery
+from asset_pipeline.catalog.registry import Catalog, register_asset_dir
+from asset_pipeline.gallery.page import Shot, screenshots, serving, write_gallery
 
 REPO = Path(__file__).resolve().parents[1]
 CHROMIUM = Path("/usr/bin/chromium")
-THREE = REPO / "asset_pipeline" / "gallery_web" / "three" / "build" / "three.module.js"
+THREE = REPO / "asset_pipeline" / "gallery" / "web" / "three" / "build" / "three.module.js"
 needs_chromium = pytest.mark.skipif(
     not CHROMIUM.exists() or not THREE.exists(),
     reason="needs /usr/bin/chromium and three.js (scripts/setup.sh installs both: apt-get "

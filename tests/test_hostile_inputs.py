@@ -14,16 +14,16 @@ import pytest
 from PIL import Image
 from typer.testing import CliRunner
 
-from asset_pipeline import batch
-from asset_pipeline.batch import (
+from asset_pipeline.catalog import batch
+from asset_pipeline.catalog.batch import (
     ConvertSettings,
     OutputFolderError,
     OutputLockedError,
     _convert_in_worker,
     run_convert,
 )
-from asset_pipeline.catalog import Catalog
-from asset_pipeline.inputs import discover_inputs
+from asset_pipeline.catalog.registry import Catalog
+from asset_pipeline.inputs.folder import discover_inputs
 from pact_cli.main import app
 from sim_envs import FolderSource
 
@@ -257,7 +257,7 @@ def test_generated_files_are_readable_by_others(tmp_path):
 
 
 def test_train_gen_passes_its_options_and_guards_the_shipped_weights(tmp_path, monkeypatch):
-    import generator.pact.train_stage2 as stage2
+    import generator.pact.training.train_stage2 as stage2
 
     seen = []
     monkeypatch.setattr(stage2, "main", lambda argv: seen.append(argv))
@@ -273,7 +273,7 @@ def test_train_gen_passes_its_options_and_guards_the_shipped_weights(tmp_path, m
     assert "--config" in argv and "stage2_full" in argv and "--resume" not in argv
     assert ["--minutes", "3.0"] == argv[argv.index("--minutes") : argv.index("--minutes") + 2]
     monkeypatch.undo()
-    shipped = Path(stage2.__file__).parent / "weights" / "small"
+    shipped = Path(stage2.__file__).parents[1] / "weights" / "small"
     before = sorted((p, p.stat().st_mtime) for p in shipped.rglob("*"))
     with pytest.raises(SystemExit, match="shipped weights"):
         stage2.main(["vae", "--data", "D", "--out", str(shipped / "slat_vae")])

@@ -10,14 +10,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline.importers import (
-    ImportFormatError,
-    ImportOptions,
-    convert_tree,
-    find_sources,
-    import_path,
-)
-from generator.articulated import load_bundle
+from asset_pipeline.importers import find_sources, import_path
+from asset_pipeline.importers.diffuse_tree import ImportOptions, convert_tree
+from asset_pipeline.importers.source_format import ImportFormatError
+from generator.bundle import load_bundle
 
 
 def _box(path: Path, extents, centre) -> str:

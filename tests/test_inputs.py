@@ -12,23 +12,20 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from asset_pipeline.inputs import (
-    ID_PATTERN,
+from asset_pipeline.inputs.asset_ids import ID_PATTERN, asset_id_for, is_reserved_id
+from asset_pipeline.inputs.errors import InputError
+from asset_pipeline.inputs.folder import (
     IMAGE_SUFFIXES,
-    MASK_MIN_IOU,
     MASK_SUFFIX,
-    MIN_PHOTO_SIZE,
-    InputError,
     InputItem,
     InputListing,
     SkippedFile,
-    asset_id_for,
-    check_hints,
-    check_mask_matches_photo,
     discover_inputs,
-    is_reserved_id,
     load_input,
 )
+from asset_pipeline.inputs.hints import check_hints
+from asset_pipeline.inputs.mask import MASK_MIN_IOU, check_mask_matches_photo
+from asset_pipeline.inputs.photo import MIN_PHOTO_SIZE
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
 

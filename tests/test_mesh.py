@@ -1,4 +1,4 @@
-"""generator.mesh_repair (watertight repair / remesh) and asset_pipeline.mesh (the metric step)."""
+"""generator.mesh_repair.closing (watertight repair / remesh) and asset_pipeline.geometry.metric (the metric step)."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline.mesh import DEFAULT_HEIGHTS, metric_factor, to_metric
+from asset_pipeline.geometry.metric import DEFAULT_HEIGHTS, metric_factor, to_metric
 from generator.articulated import ArticulatedObject, Handle, Joint, Part, Primitive
-from generator.mesh_repair import is_closed_volume, remesh_pitch, watertight
+from generator.mesh_repair.closing import is_closed_volume, remesh_pitch, watertight
 
 
 def _stacked_boxes() -> trimesh.Trimesh:

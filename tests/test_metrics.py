@@ -11,7 +11,8 @@ import pytest
 import trimesh
 from rich.console import Console
 
-from generator.articulated import ArticulatedObject, Joint, Part, save_bundle
+from generator.articulated import ArticulatedObject, Joint, Part
+from generator.bundle import save_bundle
 from generator.metrics import (
     DCDIST_UNMATCHED,
     DGIOU_UNMATCHED,

@@ -1,11 +1,11 @@
-"""Stage-1 input augmentation (generator/pact/augment.py): what each transform changes
+"""Stage-1 input augmentation (generator/pact/training/augment.py): what each transform changes
 and what it leaves alone, on hand-made images and masks."""
 
 from __future__ import annotations
 
 import torch
 
-from generator.pact.augment import (
+from generator.pact.training.augment import (
     AugmentConfig,
     augment_inputs,
     drop_rgb,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generator.pact.mask_agreement import (
+from generator.pact.inference.mask_agreement import (
     agreement,
     carve_missing,
     id_iou,
@@ -17,7 +17,7 @@ from generator.pact.mask_agreement import (
     surface_points,
     view_rotation,
 )
-from generator.pact.stage1_generator import Stage1Generator
+from generator.pact.inference.stage1_generator import Stage1Generator
 
 R = 16
 
@@ -205,7 +205,7 @@ def test_height_scale_fits_the_silhouettes_aspect_by_hand():
     """Seen from the front (the only view offered), the body is 32 wide and 16 tall:
     against a square silhouette its height must double, against one 4 to 1 halve;
     against one of its own aspect it stays."""
-    from generator.pact.mask_agreement import height_scale
+    from generator.pact.inference.mask_agreement import height_scale
 
     front = (view_rotation(0.0, 0.0),)
     occ = _desk()
@@ -227,7 +227,7 @@ def test_rescale_height_keeps_parts_and_thin_panels():
     disjoint, none is emptied, and a factor of 1 changes nothing. ``fit_height`` leaves a
     sample a third too low alone (within the tolerance) and doubles one half as tall as
     the silhouette says."""
-    from generator.pact.mask_agreement import fit_height, rescale_height
+    from generator.pact.inference.mask_agreement import fit_height, rescale_height
 
     occ = _desk()
     for factor, tall in ((2.0, 32), (0.5, 8)):

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from generator.pact.mask_agreement import view_rotation
-from generator.pact.mask_layout import (
+from generator.pact.inference.mask_agreement import view_rotation
+from generator.pact.inference.mask_layout import (
     BOX_IOU,
     MIN_FIT_IOU,
     BoxCamera,
@@ -146,7 +146,7 @@ def test_a_legged_tables_fit_ignores_the_photo(monkeypatch):
     (IoU below ``BOX_IOU``): where its front/side edge would be there is only background
     between the legs, so the photo is not read (no edge score taken) and the fit is the
     mask's; a box's fit reads it."""
-    import generator.pact.mask_layout as mask_layout
+    import generator.pact.inference.mask_layout as mask_layout
 
     calls = []
     score = mask_layout.edge_score
@@ -318,7 +318,7 @@ def test_a_chest_of_ten_drawers_keeps_all_ten_past_the_flows_slots():
     stage 1 returns 11 slots, each drawer's cells where its mask puts it (its column and
     row), and the assembled object has ten movable parts, the three the heads never read
     typed by their shape (wide fronts: drawers)."""
-    from generator.pact.generate import PActGenerator
+    from generator.pact.inference.generate import PActGenerator
 
     boxes = [((-0.25, -0.5, -0.6), (0.25, 0.5, 0.6), 1)]
     rows = np.linspace(-0.58, 0.58, 6)
@@ -348,7 +348,7 @@ def test_sample_mask_shows_the_samples_parts_where_the_silhouette_is():
     """Without a part mask, the sample's own parts seen in the view that matches the
     photo's silhouette stand in for one: on a chest whose sample has its drawers right,
     each drawer's pixels land on that drawer in the (independently ray-cast) picture."""
-    from generator.pact.mask_agreement import sample_mask
+    from generator.pact.inference.mask_agreement import sample_mask
 
     truth = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
     occ = np.zeros((3, 32, 32, 32), bool)
@@ -376,7 +376,7 @@ def test_sample_mask_keeps_a_parts_largest_piece():
     picture has it."""
     from scipy import ndimage
 
-    from generator.pact.mask_agreement import sample_mask
+    from generator.pact.inference.mask_agreement import sample_mask
 
     truth = _raycast(_chest(top_id=2, bottom_id=3), azimuth_deg=30.0, elevation_deg=15.0)
     occ = np.zeros((3, 32, 32, 32), bool)
@@ -394,7 +394,7 @@ def test_sample_mask_keeps_a_parts_largest_piece():
 
 
 def test_sample_mask_of_an_empty_sample_or_silhouette_is_empty():
-    from generator.pact.mask_agreement import sample_mask
+    from generator.pact.inference.mask_agreement import sample_mask
 
     occ = np.zeros((2, 8, 8, 8), bool)
     sil = np.ones((16, 16), bool)

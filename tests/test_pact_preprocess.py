@@ -11,10 +11,11 @@ import pytest
 import torch
 from test_pact_train import FAST, TINY, write_tiny_dataset
 
-from generator.pact.checkpoint import load_checkpoint, save_checkpoint
-from generator.pact.foreground import ForegroundConfig, ForegroundNet, iou
-from generator.pact.image_encoder import ImageEncoder, ViTConfig
-from generator.pact.preprocess import (
+from generator.pact.inference.stage1_generator import Stage1Generator
+from generator.pact.model.checkpoint import load_checkpoint, save_checkpoint
+from generator.pact.model.foreground import ForegroundConfig, ForegroundNet, iou
+from generator.pact.model.image_encoder import ImageEncoder, ViTConfig
+from generator.pact.model.preprocess import (
     ForegroundMissingError,
     crop_boxes,
     encoder_inputs,
@@ -22,9 +23,8 @@ from generator.pact.preprocess import (
     square_inputs,
     square_silhouette,
 )
-from generator.pact.stage1_generator import Stage1Generator
-from generator.pact.train import aux_seg_loss, export_weights, train_stage1
-from generator.pact.train_foreground import train_foreground
+from generator.pact.training.train_foreground import train_foreground
+from generator.pact.training.train_stage1 import aux_seg_loss, export_weights, train_stage1
 
 torch.set_num_threads(1)
 

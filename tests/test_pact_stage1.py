@@ -18,21 +18,21 @@ from generator.pact import (
     generate_parts,
     load_checkpoint,
     load_config,
-    model_configs,
     sample,
     save_checkpoint,
     vae_loss,
 )
-from generator.pact.flow import guided_velocity, noisy, sample_t
-from generator.pact.image_encoder import (
+from generator.pact.model import model_configs
+from generator.pact.model.flow import guided_velocity, noisy, sample_t
+from generator.pact.model.image_encoder import (
     ViTConfig,
     WeightsLayoutError,
     dinov2_key_to_local,
     load_dinov2_weights,
 )
-from generator.pact.part_flow import PartFlowConfig
-from generator.pact.ss_vae import SSVAEConfig, SSVAETrainConfig, occupancy_iou
-from generator.pact.stage1 import ConfigMismatchError, Stage1Config, config_from_dict
+from generator.pact.model.part_flow import PartFlowConfig
+from generator.pact.model.ss_vae import SSVAEConfig, SSVAETrainConfig, occupancy_iou
+from generator.pact.model.stage1 import ConfigMismatchError, Stage1Config, config_from_dict
 
 torch.set_num_threads(1)  # tiny ops: a second thread only adds barrier waits on a shared CPU
 
@@ -461,7 +461,7 @@ def test_generate_parts_end_to_end_shapes():
 def test_tidy_parts_hand_computed_case():
     import numpy as np
 
-    from generator.pact.stage1 import tidy_parts
+    from generator.pact.model.stage1 import tidy_parts
 
     occ = np.zeros((4, 8, 8, 8), bool)
     occ[0, :6, :6, :6] = True  # base: 216 voxels
@@ -515,7 +515,7 @@ def _box_shell(lo, hi, R=16):
 def test_close_surface_fills_wall_holes_and_keeps_a_kneehole_open():
     import numpy as np
 
-    from generator.pact.stage1 import close_surface
+    from generator.pact.model.stage1 import close_surface
 
     # a cabinet: a box shell (x 2..12, y 2..14, z 0..12) with a drawer front in it
     occ = np.zeros((3, 16, 16, 16), bool)

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from generator.articulated import Primitive
-from generator.pact.articulation import (
+from generator.pact.model.articulation import (
     ArticulationHead,
     ArticulationHeadConfig,
     ArticulationTargets,
@@ -17,16 +17,16 @@ from generator.pact.articulation import (
     pool_parts,
     project_origin_to_aabb,
 )
-from generator.pact.slat_data import primitive_sdf, shell_voxels, subsample_points
-from generator.pact.slat_vae import (
+from generator.pact.model.slat_vae import (
     SlatVAE,
     SlatVAEConfig,
     SlatVAETrainConfig,
     decode_part_mesh,
+    shell_voxels,
     sparse_parts,
     vae_loss,
 )
-from generator.pact.stage2 import (
+from generator.pact.model.stage2 import (
     Stage2SamplerConfig,
     Stage2TrainConfig,
     collate,
@@ -35,7 +35,8 @@ from generator.pact.stage2 import (
     training_step,
     untokenize,
 )
-from generator.pact.stage2_flow import Stage2FlowConfig, Stage2FlowTransformer
+from generator.pact.model.stage2_flow import Stage2FlowConfig, Stage2FlowTransformer
+from generator.pact.training.stage2_data import primitive_sdf, subsample_points
 
 
 @pytest.fixture(autouse=True)
@@ -71,7 +72,7 @@ def _tiny_tokens(seed: int = 0):
     occ = np.zeros((4, 32, 32, 32), bool)
     occ[0, 4:20, 4:20, 4:12] = True
     occ[1, 20:28, 8:16, 8:16] = True
-    from generator.pact.stage2 import voxels_from_occupancy
+    from generator.pact.model.stage2 import voxels_from_occupancy
 
     coords, slot = voxels_from_occupancy(occ)
     z = np.random.default_rng(seed).normal(size=(len(coords), 8)).astype(np.float32)
@@ -255,7 +256,7 @@ def test_x0_prediction_velocity_by_hand():
 
 def test_training_step_joint_loss_backpropagates():
     torch.manual_seed(0)
-    from generator.pact.image_encoder import ImageEncoder, ViTConfig
+    from generator.pact.model.image_encoder import ImageEncoder, ViTConfig
 
     models = {
         "image_encoder": ImageEncoder(
@@ -281,7 +282,7 @@ def test_training_step_joint_loss_backpropagates():
 
 @pytest.fixture(scope="module")
 def shipped_pact():
-    from generator.pact.generate import PActGenerator
+    from generator.pact.inference.generate import PActGenerator
 
     return PActGenerator.default(device="cpu")
 
@@ -300,9 +301,9 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
 
     from PIL import Image
 
-    from asset_pipeline.build import build_asset
+    from asset_pipeline.assets.build import build_asset
     from asset_pipeline.validate import validate_asset
-    from generator.articulated import save_bundle
+    from generator.bundle import save_bundle
 
     root = Path(__file__).resolve().parents[1] / "examples" / "images"
     image = np.asarray(Image.open(root / f"{name}.png").convert("RGB"))
@@ -337,7 +338,7 @@ def test_shipped_model_generates_an_object_that_builds_and_validates(shipped_pac
 
 
 def _joint(type_: str, semantic: str, origin, axis):  # noqa: ANN202
-    from generator.pact.articulation import PartJoint
+    from generator.pact.model.articulation import PartJoint
 
     return PartJoint(
         type_, semantic, np.array(origin, float), np.array(axis, float), 0.0, 1.2, np.ones(3) / 3
@@ -351,7 +352,7 @@ def test_joint_type_from_the_stage1_head_where_the_heads_disagree(monkeypatch):
     the default only with a stage-1 head and stage-1 features."""
     from types import SimpleNamespace
 
-    from generator.pact.generate import PActGenerator
+    from generator.pact.inference.generate import PActGenerator
 
     j2 = [
         None,
@@ -391,7 +392,7 @@ def test_category_prior_hinges_doors_as_the_category_does():
     side hinge (at the side nearest the prediction), an oven's side-hinged door to a
     bottom hinge, a microwave 'drawer' to a door; a cabinet's door, a lid and a part
     that is not a front panel keep what the head predicted."""
-    from generator.pact.articulation import apply_category_prior
+    from generator.pact.model.articulation import apply_category_prior
 
     lo, hi = np.array([0.3, -0.4, -0.3]), np.array([0.35, 0.2, 0.3])  # a front panel
     j = apply_category_prior(
@@ -427,7 +428,7 @@ def test_shape_prior_types_wide_side_hinged_front_parts_as_drawers():
     door, a drawer as wide as tall, and narrow drawers a quarter and nine tenths of the
     object tall (a chest's small one, a desk's pedestal drawer) keep what the head
     predicted."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
     wide_lo, wide_hi = np.array([0.35, -0.3, 0.1]), np.array([0.4, 0.3, 0.3])  # 0.6 x 0.2
@@ -468,7 +469,7 @@ def test_shape_prior_makes_a_drawer_taller_than_wide_a_side_hinged_door():
     0.7 of the object tall (a cupboard's door the stage-1 sample drew as deep as a
     drawer) becomes a door hinged about a vertical axis at its edge nearer the object's
     side, a quarter turn."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
     for lo, hi, hinge_y in (
@@ -489,7 +490,7 @@ def test_shape_prior_makes_a_full_width_front_part_of_a_tall_appliance_an_oven_d
     drawer's shape): the door hinges at its bottom front edge. A nightstand's drawer in a
     frame (0.85 of the width, twice as wide as tall), called either, and an oven's
     storage drawer (0.2 of the height of an oven 1.25 as tall as wide), are drawers."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     oven = (np.array([-0.3, -0.3, -0.5]), np.array([0.3, 0.3, 0.5]))
     upper = (np.array([-0.2, -0.3, 0.12]), np.array([0.3, 0.3, 0.4]))
@@ -514,7 +515,7 @@ def test_door_panel_keeps_the_front_slab_closed_and_coloured():
     to 0.25 with the part's full face, coloured as the part."""
     import trimesh
 
-    from generator.pact.generate import door_panel
+    from generator.pact.inference.generate import door_panel
 
     part = trimesh.creation.box((0.5, 0.3, 0.6))  # x from -0.25 to 0.25
     part.visual.vertex_colors = np.tile([200, 30, 30, 255], (len(part.vertices), 1))
@@ -529,7 +530,7 @@ def test_shape_prior_hinges_off_centre_doors_at_their_outer_edge():
     """The two doors of a pair (each a quarter of the width off the middle), whatever side
     the head hinged them at, hinge at their outer edges; a door in the middle keeps the
     head's side."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
     left = (np.array([0.35, -0.48, -0.4]), np.array([0.4, -0.01, 0.4]))
@@ -554,7 +555,7 @@ def test_shape_prior_hinges_a_low_boxs_full_width_door_at_the_bottom():
     head hinged at its side: the door hinges at its bottom edge. The same door on a fridge
     2.5 as tall as wide (a freezer door), or a round washer door as wide as tall, keeps
     its side hinge."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     oven = (np.array([-0.4, -0.4, -0.5]), np.array([0.4, 0.4, 0.46]))  # 0.8 wide, 0.96 tall
     door = (np.array([0.35, -0.4, -0.3]), np.array([0.4, 0.4, 0.34]))  # 0.8 x 0.64
@@ -576,7 +577,7 @@ def test_joint_from_shape_for_parts_no_head_read():
     panel half as wide as tall a door hinged at its side edge nearer the object's side
     (+y here), but a drawer when it is half the object deep; a part away from the front
     is fixed."""
-    from generator.pact.articulation import joint_from_shape
+    from generator.pact.model.articulation import joint_from_shape
 
     obj_lo, obj_hi = np.array([-0.4, -0.5, -0.5]), np.array([0.4, 0.5, 0.5])
     j = joint_from_shape(np.array([0.35, -0.3, 0.0]), np.array([0.4, 0.0, 0.2]), obj_lo, obj_hi)
@@ -597,7 +598,7 @@ def test_shape_prior_makes_a_tall_lid_on_the_front_a_front_part():
     washer's, 0.06 of the height); 0.45 of a wall oven's height tall and full width, it is
     the oven's upper door, hinged at its bottom front edge; 0.3 of a nightstand's height
     and 2.5 times as wide as tall, its drawer."""
-    from generator.pact.articulation import apply_shape_prior
+    from generator.pact.model.articulation import apply_shape_prior
 
     def lid():  # noqa: ANN202
         return _joint("revolute", "lid", (-0.3, 0, 0.5), (0, -1, 0))
@@ -625,7 +626,7 @@ def test_a_stacked_ovens_other_full_width_door_swings_down_too():
     heads hinge at the side, hinges at its bottom edge too. A fridge's full-width door
     (taller than wide) and a narrower side door keep their side hinge, and with no
     bottom-hinged door on the object nothing changes."""
-    from generator.pact.articulation import match_oven_doors
+    from generator.pact.model.articulation import match_oven_doors
 
     oven = (np.array([-0.3, -0.3, -0.85]), np.array([0.3, 0.3, 0.85]))
     upper = (np.array([0.25, -0.3, 0.2]), np.array([0.3, 0.3, 0.6]))

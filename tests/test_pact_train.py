@@ -14,16 +14,20 @@ import torch
 import torch.multiprocessing as mp
 
 from generator.data.shards import pack_occupancy, write_manifest
-from generator.pact.data import Stage1Dataset, in_val_split
-from generator.pact.stage1 import (
+from generator.pact.inference.stage1_generator import (
+    Stage1Generator,
+    estimate_joint,
+    occupancy_mesh,
+)
+from generator.pact.model.stage1 import (
     LatentStats,
     build_stage1,
     config_from_dict,
     load_stage1,
     save_stage1,
 )
-from generator.pact.stage1_generator import Stage1Generator, estimate_joint, occupancy_mesh
-from generator.pact.train import export_weights, train_stage1
+from generator.pact.training.stage1_data import Stage1Dataset, in_val_split
+from generator.pact.training.train_stage1 import export_weights, train_stage1
 
 torch.set_num_threads(1)
 

@@ -7,10 +7,10 @@ import pytest
 import trimesh
 
 from generator.articulated import ArticulatedObject, Joint, Part
-from generator.mesh_repair import is_closed
-from generator.pact.slat_data import RESOLUTION, SUB, TRUNCATION, shell_voxels, subsample_points
-from generator.pact.slat_vae import decode_part_mesh
-from generator.part_cleaning import clean_mesh, clean_parts, pieces
+from generator.mesh_repair.cleaning import clean_mesh, clean_parts, pieces
+from generator.mesh_repair.closing import is_closed
+from generator.pact.model.slat_vae import RESOLUTION, SUB, decode_part_mesh, shell_voxels
+from generator.pact.training.stage2_data import TRUNCATION, subsample_points
 
 R = RESOLUTION
 VOXEL = 1.0 / R
@@ -219,7 +219,7 @@ def test_layout_from_raw_meshes_visuals_from_clean_ones():
 
     from generator.articulated import ArticulatedObject, Joint, Part
     from generator.box_layout import fit_box_layout
-    from generator.pact.generate import with_visuals
+    from generator.pact.inference.generate import with_visuals
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))
@@ -279,7 +279,7 @@ def test_a_raw_mesh_that_lost_the_face_is_replaced_by_the_clean_one():
     trimmed, a stray fragment) is kept; a missing raw mesh is replaced."""
     import trimesh as tm
 
-    from generator.pact.generate import _raw_face_lost
+    from generator.pact.inference.generate import _raw_face_lost
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))
@@ -309,7 +309,7 @@ def test_visuals_are_cut_where_they_reach_into_a_neighbour():
 
     from generator.articulated import Joint, Part, Primitive
     from generator.metrics import iou
-    from generator.pact.generate import _primitive_box, clip_from_neighbours
+    from generator.pact.inference.generate import _primitive_box, clip_from_neighbours
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))
@@ -371,7 +371,7 @@ def test_a_drawer_drawn_as_its_front_gets_the_body_of_its_collision_box() -> Non
     sliding along -y, is handled alike (the latter: along y)."""
     import trimesh as tm
 
-    from generator.pact.generate import DRAWER_WALL, drawer_body
+    from generator.pact.inference.generate import DRAWER_WALL, drawer_body
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))
@@ -416,7 +416,7 @@ def test_visuals_of_two_doors_opening_together_are_cut_apart():
     import trimesh as tm
 
     from generator.metrics import aor
-    from generator.pact.sweep_clearance import keep_sweeps_apart, swept_bounds
+    from generator.pact.inference.sweep_clearance import keep_sweeps_apart, swept_bounds
 
     def box(lo, hi):
         m = tm.creation.box(np.subtract(hi, lo))

@@ -1,4 +1,4 @@
-"""Importing PartNet-Mobility objects (``asset_pipeline.partnet``) as bundles.
+"""Importing PartNet-Mobility objects (``asset_pipeline.importers.partnet``) as bundles.
 
 No real PartNet data: ``partnet_fixtures`` writes procedural objects and hand-made hard
 cases in the PartNet-Mobility layout (raw y-up meshes, URDF visual origins, annotation
@@ -35,15 +35,17 @@ from partnet_fixtures import (
 )
 from typer.testing import CliRunner
 
-from asset_pipeline.importers import ImportFormatError, find_sources, import_path
-from asset_pipeline.partnet import (
+from asset_pipeline.importers import find_sources, import_path
+from asset_pipeline.importers.partnet import (
     PartnetFormatError,
     PartnetOptions,
     convert_object,
     find_objects,
     import_objects,
 )
-from generator.articulated import ArticulatedObject, load_bundle, save_bundle
+from asset_pipeline.importers.source_format import ImportFormatError
+from generator.articulated import ArticulatedObject
+from generator.bundle import load_bundle, save_bundle
 from generator.procedural import sample_object
 
 UNIT = 0.6  # metres per raw unit in the fixtures (partnet_fixtures.write_partnet default)
@@ -128,7 +130,7 @@ def test_bundle_round_trip_and_height(tmp_path: Path) -> None:
     obj = load_bundle(written[0])
     # the closed object is 0.9 m tall once the build applies the stored scale
     assert obj.scale == pytest.approx(0.9 / np.ptp(obj.bounds()[:, 2]))
-    from asset_pipeline.mesh import to_metric
+    from asset_pipeline.geometry.metric import to_metric
 
     built = to_metric(obj, height=2.0)  # a known scale wins over a build-time height
     assert np.ptp(built.bounds()[:, 2]) == pytest.approx(0.9, rel=1e-6)
@@ -439,7 +441,7 @@ def test_folder_with_broken_objects(tmp_path: Path) -> None:
     again = import_path(tmp_path / "src", out)
     assert list(again) == [] and len(again.failures) == 6
     assert any("a bundle already exists" in f.message for f in again.failures)
-    from asset_pipeline.importers import ImportOptions
+    from asset_pipeline.importers.diffuse_tree import ImportOptions
 
     assert len(import_path(tmp_path / "src", out, ImportOptions(overwrite=True))) == 3
 
@@ -589,7 +591,7 @@ def test_nested_part_rerooted_and_continuous_door(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import asset_pipeline.partnet as pn
+    import asset_pipeline.importers.partnet as pn
 
     def broken_save(obj: ArticulatedObject, directory: Path) -> Path:
         (Path(directory) / "parts").mkdir(parents=True)
@@ -652,8 +654,8 @@ def _flush_drawer() -> list[LinkSpec]:
 def test_flush_drawer_gets_a_grip_that_collides(tmp_path: Path) -> None:
     """A drawer without any handle gets a bar grip centred on its front (in its visual mesh,
     in the drawer's colour, recorded); the build gives the grip collision boxes."""
-    from asset_pipeline.asset_io import load_asset
-    from asset_pipeline.build import BuildOptions, build_asset
+    from asset_pipeline.assets.build import BuildOptions, build_asset
+    from asset_pipeline.assets.folder import load_asset
 
     links = _flush_drawer()
     src = write_partnet(tmp_path / "src" / "flush", links)

@@ -1,4 +1,4 @@
-"""The photo's camera (asset_pipeline.photo_camera): model, rasterizer, part matching, fit."""
+"""The photo's camera (asset_pipeline.photo.camera): model, rasterizer, part matching, fit."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from asset_pipeline.photo_camera import (
+from asset_pipeline.photo.camera import (
     CameraFormatError,
     FitOptions,
     PhotoCamera,

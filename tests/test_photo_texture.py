@@ -1,4 +1,4 @@
-"""The photo's texture (asset_pipeline.photo_texture): a box seen from a known camera."""
+"""The photo's texture (asset_pipeline.photo.texture): a box seen from a known camera."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ import pytest
 import trimesh
 from test_photo_camera import box, cabinet, camera, render_ids
 
-from asset_pipeline.build import build_asset
-from asset_pipeline.mesh import has_texture_image, to_metric, watertight_object
-from asset_pipeline.photo_texture import bake_photo_texture
-from generator.articulated import Joint, Part, Primitive, save_bundle
-from generator.mesh_repair import is_closed_volume
+from asset_pipeline.assets.build import build_asset
+from asset_pipeline.geometry.metric import to_metric
+from asset_pipeline.photo.texture import bake_photo_texture
+from generator.articulated import Joint, Part, Primitive
+from generator.bundle import save_bundle
+from generator.mesh_repair.closing import has_texture_image, is_closed_volume, watertight_object
 
 BACKGROUND = (20, 40, 200)  # blue: must never reach a texture that is sampled
 DRAWER = (220, 30, 30)
@@ -159,7 +160,7 @@ def test_textured_meshes_stay_closed_and_build_writes_base_colour_textures(baked
 
 
 def test_fine_mesh_subdivides_low_poly_parts_but_not_a_fine_mesh_with_one_long_cap():
-    from asset_pipeline.photo_texture import _fine_mesh
+    from asset_pipeline.photo.texture import _fine_mesh
 
     coarse = trimesh.creation.box((1.0, 1.0, 1.0))  # 12 faces, edges up to 1.41
     fine, origin = _fine_mesh(coarse, 0.2, 4, long_share=0.05, max_faces=500_000)

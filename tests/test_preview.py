@@ -1,4 +1,4 @@
-"""preview.png of a built asset (asset_pipeline.preview): rendered by SAPIEN on lavapipe.
+"""preview.png of a built asset (asset_pipeline.validate.preview): rendered by SAPIEN on lavapipe.
 
 Rendering needs a Vulkan device; without one the tests that draw are skipped with
 the reason, and the no-device path is tested by simulating it.
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from asset_pipeline import preview as preview_mod
-from asset_pipeline.build import build_asset
-from asset_pipeline.preview import render_device_available, render_preview
+from asset_pipeline.assets.build import build_asset
+from asset_pipeline.validate import preview as preview_mod
 from asset_pipeline.validate import validate_asset
-from generator.articulated import save_bundle
+from asset_pipeline.validate.preview import render_device_available, render_preview
+from generator.bundle import save_bundle
 from generator.procedural import sample_object
 
 

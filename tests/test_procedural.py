@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from generator.articulated import ArticulatedObject, load_bundle, save_bundle
+from generator.articulated import ArticulatedObject
+from generator.bundle import load_bundle, save_bundle
 from generator.procedural import (
     CATEGORIES,
     HELD_OUT,

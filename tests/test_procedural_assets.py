@@ -9,9 +9,13 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from asset_pipeline.build import build_asset
-from asset_pipeline.sapien_loading import collision_shape_counts, load_articulation, make_scene
-from generator.articulated import save_bundle
+from asset_pipeline.assets.build import build_asset
+from asset_pipeline.simulation.sapien_scenes import (
+    collision_shape_counts,
+    load_articulation,
+    make_scene,
+)
+from generator.bundle import save_bundle
 from generator.procedural import CATEGORIES, object_id, sample_object
 
 SEEDS = (11, 12)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from generator.articulated import load_bundle
+from generator.bundle import load_bundle
 from generator.data.real_split import (
     LABELS,
     STYLES,

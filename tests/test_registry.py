@@ -11,7 +11,7 @@ import pytest
 from asset_fixtures import write_two_part_cabinet
 from rich.console import Console
 
-from asset_pipeline.catalog import (
+from asset_pipeline.catalog.registry import (
     AssetRecord,
     Catalog,
     CatalogError,

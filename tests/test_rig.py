@@ -1,4 +1,4 @@
-"""asset_pipeline.rig: mass properties, the rig, URDF and MJCF text."""
+"""asset_pipeline.assets.rig: mass properties, the rig, URDF and MJCF text."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 import trimesh
 from lxml import etree
 
-from asset_pipeline.asset_io import mjcf_string, urdf_string
-from asset_pipeline.built_asset import JointPhysics
-from asset_pipeline.rig import (
+from asset_pipeline.assets.built_asset import JointPhysics
+from asset_pipeline.assets.mjcf import mjcf_string
+from asset_pipeline.assets.rig import (
     DENSITIES,
     MATERIALS,
     MaterialModel,
@@ -20,6 +20,7 @@ from asset_pipeline.rig import (
     mass_properties,
     sanitize_inertia,
 )
+from asset_pipeline.assets.urdf import urdf_string
 from generator.articulated import ArticulatedObject, Joint, Part
 
 

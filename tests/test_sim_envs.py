@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from asset_fixtures import write_box_cabinet
 
-from asset_pipeline.catalog import AssetRecord, Catalog
+from asset_pipeline.catalog.registry import AssetRecord, Catalog
 from sim_envs import AssetSourceError, CatalogSource, FolderSource, open_source, read_task_asset
 
 
@@ -81,7 +81,7 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
     import gymnasium as gym
 
     import tasks  # noqa: F401
-    from asset_pipeline.sim_options import DEFAULT_SIM_OPTIONS
+    from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS
     from sim_envs.scene import count_collision_shapes
 
     env = gym.make(
@@ -118,7 +118,7 @@ def test_load_asset_in_maniskill_scene(asset_dir: Path) -> None:
 
 
 def test_joint_names_match_by_suffix() -> None:
-    from asset_pipeline.sim_options import match_joint_name
+    from asset_pipeline.simulation.sim_options import match_joint_name
 
     names = ["joint_door_0", "joint_door_10", "joint_drawer_0"]
     assert match_joint_name("joint_door_0", names) == "joint_door_0"  # SAPIEN keeps names
@@ -149,7 +149,7 @@ def test_floor_lift_of_a_door_that_swings_through_the_floor() -> None:
     (+0.03, -0.03 from the hinge) turns about +y and dips to -0.03 (sin t + cos t), lowest
     -0.03 sqrt(2) at 45 degrees, i.e. 0.03 (sqrt(2) - 1) = 12.4 mm below the floor. A
     drawer (prismatic, level) never dips."""
-    from asset_pipeline.built_asset import BuiltAsset, CollisionPiece, Joint, Link
+    from asset_pipeline.assets.built_asset import BuiltAsset, CollisionPiece, Joint, Link
     from sim_envs.scene import FLOOR_CLEARANCE, floor_lift
 
     def piece(lo: list[float], hi: list[float]) -> CollisionPiece:

@@ -14,8 +14,8 @@ WIDE_FRIDGE = ("refrigerator", 201, "door_0")
 
 def _build(tmp_path_factory: pytest.TempPathFactory, category: str, seed: int):
     """One procedural object built into a fresh folder: its asset record."""
-    from asset_pipeline.build import build_asset
-    from generator.articulated import save_bundle
+    from asset_pipeline.assets.build import build_asset
+    from generator.bundle import save_bundle
     from generator.procedural import object_id, sample_object
     from sim_envs import FolderSource
 
@@ -291,8 +291,9 @@ def _drawer_under_a_worktop(root, long_pull: bool = False) -> object:
     the lip less than ``approach_blocked`` short of the pull and never holds it."""
     import trimesh
 
-    from asset_pipeline.build import build_asset
-    from generator.articulated import ArticulatedObject, Handle, Joint, Part, save_bundle
+    from asset_pipeline.assets.build import build_asset
+    from generator.articulated import ArticulatedObject, Handle, Joint, Part
+    from generator.bundle import save_bundle
     from generator.procedural.solids import box, cylinder
     from sim_envs import FolderSource
 

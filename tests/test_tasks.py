@@ -16,8 +16,8 @@ import tasks  # noqa: F401  (registers the envs)
 def procedural_assets(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Built procedural assets: a desk with drawers, a microwave with a side-hinged door,
     an oven with a bottom-hinged door and a fridge with two side-hinged doors."""
-    from asset_pipeline.build import build_asset
-    from generator.articulated import save_bundle
+    from asset_pipeline.assets.build import build_asset
+    from generator.bundle import save_bundle
     from generator.procedural import object_id, sample_object
 
     root = tmp_path_factory.mktemp("assets")
@@ -174,7 +174,7 @@ def test_resets_between_reconfigurations_resample_part_and_poses(
 
 def test_state_obs_carries_the_target_handle_kind(procedural_assets: Path) -> None:
     """``handle_kind`` in the state observation is the one-hot of the episode's part."""
-    from asset_pipeline.built_asset import HANDLE_KINDS
+    from asset_pipeline.assets.built_asset import HANDLE_KINDS
 
     env = _make("OpenDoor-v0", procedural_assets, obs_mode="state_dict")
     try:

@@ -17,10 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from asset_pipeline.asset_io import load_asset, piece_vertices, read_obj_vertices
-from asset_pipeline.build import build_asset
-from asset_pipeline.sapien_loading import load_articulation, physics_scene
-from asset_pipeline.sim_options import (
+from asset_pipeline.assets.build import build_asset
+from asset_pipeline.assets.folder import load_asset
+from asset_pipeline.assets.mesh_files import piece_vertices, read_obj_vertices
+from asset_pipeline.simulation.sapien_scenes import load_articulation, physics_scene
+from asset_pipeline.simulation.sim_options import (
     DEFAULT_SIM_OPTIONS,
     OBJECT_IGNORE_BIT,
     SimOptions,
@@ -28,7 +29,7 @@ from asset_pipeline.sim_options import (
 )
 from asset_pipeline.validate import Report, validate_asset
 from asset_pipeline.validate.static import hinge_offset, hull_thickness
-from generator.articulated import save_bundle
+from generator.bundle import save_bundle
 from generator.procedural import CATEGORIES, sample_object
 
 #: Seeds of every category validated by the default test run (the 10-seed batch of

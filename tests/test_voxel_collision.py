@@ -16,11 +16,9 @@ from partnet_fixtures import (
     write_partnet,
 )
 
-from asset_pipeline.build import build_asset, prepare_object
-from asset_pipeline.partnet import PartnetOptions, convert_object
-from asset_pipeline.sweep_geometry import HullSet, swept_hulls
-from asset_pipeline.validate import validate_asset
-from asset_pipeline.voxel_collision import (
+from asset_pipeline.assets.build import build_asset, prepare_object
+from asset_pipeline.geometry.sweeps import HullSet, swept_hulls
+from asset_pipeline.geometry.voxel_collision import (
     Grid,
     PointIndex,
     VoxelCollisionParams,
@@ -31,7 +29,10 @@ from asset_pipeline.voxel_collision import (
     merge_exact,
     surface_points,
 )
-from generator.articulated import ArticulatedObject, save_bundle
+from asset_pipeline.importers.partnet import PartnetOptions, convert_object
+from asset_pipeline.validate import validate_asset
+from generator.articulated import ArticulatedObject
+from generator.bundle import save_bundle
 
 #: Coarse enough for a fast test, fine enough for the exact refinement to matter.
 PARAMS = VoxelCollisionParams(resolution=96, min_pitch=0.006, max_pitch=0.012)
@@ -104,7 +105,7 @@ def test_open_shell_cabinet_validates_and_the_drawer_slides_in_sapien(tmp_path):
         write_partnet(tmp_path / "src", open_shell_cabinet()), PartnetOptions(height=0.8)
     )
     d = save_bundle(obj, tmp_path / "shell")
-    from asset_pipeline.build import BuildOptions
+    from asset_pipeline.assets.build import BuildOptions
 
     build_asset(d, options=BuildOptions(voxel=PARAMS, cache_dir=tmp_path / "cache"))
     report = validate_asset(d, preview=False)
@@ -215,7 +216,7 @@ def test_past_the_time_out_a_coarser_pitch_still_keeps_the_sweeps_free(tmp_path)
 def test_swept_hulls_of_a_revolute_box_contain_its_arc():
     """Every corner of a door panel at any angle lies in the hulls of its sweep, to within
     the sag allowed between an arc and its chord (the refinement's margin covers it)."""
-    from asset_pipeline.sweep_geometry import DEFAULT_SAG
+    from asset_pipeline.geometry.sweeps import DEFAULT_SAG
     from generator.articulated import Joint
 
     joint = Joint("revolute", [0.3, -0.3, 0.0], [0, 0, 1], 0.0, 1.5)

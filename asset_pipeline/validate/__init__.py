@@ -21,7 +21,7 @@ dynamic (PhysX CPU with the tasks' SimOptions; :mod:`.dynamic`)
 and writes ``report.json`` (:mod:`.report`, its one reader and writer).
 """
 
-from .report import (
+from asset_pipeline.validate.report import (
     DEFAULT_TOLERANCES,
     REPORT_NAME,
     STAGES,
@@ -34,7 +34,7 @@ from .report import (
     read_report,
     write_report,
 )
-from .runner import check_asset, validate_asset
+from asset_pipeline.validate.runner import check_asset, validate_asset
 
 __all__ = [
     "DEFAULT_TOLERANCES",

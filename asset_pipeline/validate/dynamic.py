@@ -1,4 +1,4 @@
-"""Dynamic checks (PhysX CPU, the :class:`~asset_pipeline.sim_options.SimOptions` the
+"""Dynamic checks (PhysX CPU, the :class:`~asset_pipeline.simulation.sim_options.SimOptions` the
 tasks use): rest under gravity, a PD drive to 90 % of the range and back, the free
 base standing on the floor, nothing non-finite.
 
@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from ..built_asset import BuiltAsset
-from ..sapien_loading import load_articulation, physics_scene
-from ..sim_options import SimOptions
-from .report import Check, Tolerances
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.simulation.sapien_scenes import load_articulation, physics_scene
+from asset_pipeline.simulation.sim_options import SimOptions
+from asset_pipeline.validate.report import Check, Tolerances
 
 
 def _effective_inertia(art: Any, joint: Any, jtype: str) -> float:

@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..asset_io import link_piece_vertices
-from ..built_asset import BuiltAsset, Joint
-from .report import Check, Tolerances
-from .static import hull_thickness
+from asset_pipeline.assets.built_asset import BuiltAsset, Joint
+from asset_pipeline.assets.mesh_files import link_piece_vertices
+from asset_pipeline.validate.report import Check, Tolerances
+from asset_pipeline.validate.static import hull_thickness
 
 
 def _transform(T: np.ndarray, v: np.ndarray) -> np.ndarray:

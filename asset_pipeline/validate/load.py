@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..built_asset import BuiltAsset
-from ..sapien_loading import load_articulation, physics_scene
-from ..sim_options import SimOptions
-from .report import Check, Tolerances
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.simulation.sapien_scenes import load_articulation, physics_scene
+from asset_pipeline.simulation.sim_options import SimOptions
+from asset_pipeline.validate.report import Check, Tolerances
 
 _SAPIEN_TYPES = {
     "prismatic": ("prismatic",),

@@ -1,7 +1,7 @@
 """Automatic repairs of a built asset, driven by failed validation checks.
 
 :func:`plan_repairs` maps failed checks to edits of the asset's model
-(:class:`~asset_pipeline.built_asset.BuiltAsset`) and returns one
+(:class:`~asset_pipeline.assets.built_asset.BuiltAsset`) and returns one
 :class:`~asset_pipeline.validate.report.RepairRecord` per edit (what, on which joint or
 link, before and after). It touches no file: the runner
 (:mod:`asset_pipeline.validate.runner`) writes the edited model with
@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..asset_io import read_obj
-from ..built_asset import BuiltAsset, CollisionPiece
-from .report import Check, RepairRecord, Tolerances
+from asset_pipeline.assets.built_asset import BuiltAsset, CollisionPiece
+from asset_pipeline.assets.mesh_files import read_obj
+from asset_pipeline.validate.report import Check, RepairRecord, Tolerances
 
 log = logging.getLogger(__name__)
 

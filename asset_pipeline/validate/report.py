@@ -17,9 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from generator.articulated import atomic_write_bytes
-
-from ..sim_options import DEFAULT_SIM_OPTIONS, SimOptions
+from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
+from generator.atomic_files import atomic_write_bytes
 
 REPORT_SCHEMA = "pact.validation"
 REPORT_VERSION = 1
@@ -138,7 +137,7 @@ class Report:
     preview: str | None = None
     tolerances: Tolerances = DEFAULT_TOLERANCES
     sim_options: SimOptions = DEFAULT_SIM_OPTIONS
-    #: Likeness to the photo (asset_pipeline.fidelity; docs/fidelity.md), None when not
+    #: Likeness to the photo (asset_pipeline.photo.fidelity; docs/fidelity.md), None when not
     #: measured. Written by the convert's ``fidelity`` stage after validation.
     fidelity: dict[str, Any] | None = None
 
@@ -161,24 +160,24 @@ class Report:
             "asset": self.asset,
             "status": self.status,
             "reasons": self.reasons,
-            "checks": [_jsonable(asdict(c)) for c in self.checks],
-            "repairs": [_jsonable(asdict(r)) for r in self.repairs],
-            "rounds": _jsonable(self.rounds),
+            "checks": [jsonable(asdict(c)) for c in self.checks],
+            "repairs": [jsonable(asdict(r)) for r in self.repairs],
+            "rounds": jsonable(self.rounds),
             "timings": {k: round(v, 4) for k, v in self.timings.items()},
             "preview": self.preview,
-            "tolerances": _jsonable(asdict(self.tolerances)),
-            "sim_options": _jsonable(asdict(self.sim_options)),
-            "fidelity": None if self.fidelity is None else _jsonable(self.fidelity),
+            "tolerances": jsonable(asdict(self.tolerances)),
+            "sim_options": jsonable(asdict(self.sim_options)),
+            "fidelity": None if self.fidelity is None else jsonable(self.fidelity),
         }
 
 
-def _jsonable(x: Any) -> Any:
+def jsonable(x: Any) -> Any:
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
+        return jsonable(x.tolist())
     if isinstance(x, (np.floating, float)):
         v = float(x)
         return v if math.isfinite(v) else str(v)

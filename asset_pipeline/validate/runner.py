@@ -20,25 +20,24 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from generator.articulated import atomic_write_bytes
-
-from ..asset_io import (
-    ASSET_JSON_NAME,
-    MJCF_NAME,
-    URDF_NAME,
-    AssetFormatError,
-    load_asset,
-    missing_files,
-    save_asset,
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.assets.folder import load_asset, missing_files, save_asset
+from asset_pipeline.assets.layout import ASSET_JSON_NAME, MJCF_NAME, URDF_NAME, AssetFormatError
+from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
+from asset_pipeline.validate.dynamic import dynamic_checks
+from asset_pipeline.validate.kinematic import kinematic_checks
+from asset_pipeline.validate.load import load_checks
+from asset_pipeline.validate.repair import plan_repairs
+from asset_pipeline.validate.report import (
+    DEFAULT_TOLERANCES,
+    Check,
+    RepairRecord,
+    Report,
+    Tolerances,
+    write_report,
 )
-from ..built_asset import BuiltAsset
-from ..sim_options import DEFAULT_SIM_OPTIONS, SimOptions
-from .dynamic import dynamic_checks
-from .kinematic import kinematic_checks
-from .load import load_checks
-from .repair import plan_repairs
-from .report import DEFAULT_TOLERANCES, Check, RepairRecord, Report, Tolerances, write_report
-from .static import static_checks
+from asset_pipeline.validate.static import static_checks
+from generator.atomic_files import atomic_write_bytes
 
 log = logging.getLogger(__name__)
 
@@ -217,7 +216,7 @@ def validate_asset(
         sim_options=options,
     )
     if preview and write:
-        from ..preview import render_preview
+        from asset_pipeline.validate.preview import render_preview
 
         t = time.perf_counter()
         try:

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from ..asset_io import piece_vertices
-from ..built_asset import BuiltAsset, Joint, Link
-from .report import Check, Tolerances
+from asset_pipeline.assets.built_asset import BuiltAsset, Joint, Link
+from asset_pipeline.assets.mesh_files import piece_vertices
+from asset_pipeline.validate.report import Check, Tolerances
 
 
 def hull_thickness(v: np.ndarray) -> float:

@@ -11,7 +11,7 @@ of every object, failures). Image ids are ``<object id>_<style>_<k>``; several i
 share one ground-truth bundle, ``manifest["images"][i]["object"]`` names it.
 
 This module only renders given objects; importing PartNet-Mobility folders is
-``asset_pipeline.partnet``'s job (``bench/real_split.py`` joins the two, since
+``asset_pipeline.importers.partnet``'s job (``bench/real_split.py`` joins the two, since
 ``generator`` must not import ``asset_pipeline``).
 
 Styles (both at rest, all joints at ``lower``, as the test split):
@@ -63,15 +63,17 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw
 
-from generator.articulated import ArticulatedObject, atomic_write_bytes, save_bundle
+from generator.articulated import ArticulatedObject
+from generator.atomic_files import atomic_write_bytes
+from generator.bundle import save_bundle
 from generator.data.render import (
     RenderedView,
-    _render_shape,
-    _render_system,
     fit_distance,
     look_at,
     part_slots,
     posed_vertices,
+    render_shape,
+    render_system,
     rest_qpos,
     sapien,
 )
@@ -908,13 +910,13 @@ class StyledRenderer:
         self.obj = obj
         self.image_size = image_size
         self.ss = int(supersample)
-        self.scene = sapien.Scene([_render_system()])
+        self.scene = sapien.Scene([render_system()])
         slot_of = {id(p): k for k, p in enumerate(part_slots(obj))}
         self.entities: list[sapien.Entity] = []
         self.mask_of: dict[int, int] = {}
         for part in obj.parts:
             body = sapien.render.RenderBodyComponent()
-            body.attach(_render_shape(part, rng))
+            body.attach(render_shape(part, rng))
             entity = sapien.Entity()
             entity.set_name(part.name)
             entity.add_component(body)

@@ -184,7 +184,7 @@ def sample_view(
 _KEEPALIVE: list[sapien.render.RenderSystem] = []
 
 
-def _render_system() -> sapien.render.RenderSystem:
+def render_system() -> sapien.render.RenderSystem:
     try:
         if not _KEEPALIVE:
             _KEEPALIVE.append(sapien.render.RenderSystem())
@@ -198,10 +198,10 @@ def _render_system() -> sapien.render.RenderSystem:
 
 def check_render_device() -> None:
     """Raise RenderUnavailableError when SAPIEN cannot create a render system."""
-    _render_system()
+    render_system()
 
 
-def _render_shape(part: Part, rng: np.random.Generator) -> sapien.render.RenderShapeTriangleMesh:
+def render_shape(part: Part, rng: np.random.Generator) -> sapien.render.RenderShapeTriangleMesh:
     """One SAPIEN shape for a part mesh (object frame), flat-shaded, colours preserved."""
     mesh: trimesh.Trimesh = part.mesh
     faces = np.asarray(mesh.faces)
@@ -248,13 +248,13 @@ class ObjectRenderer:
     def __init__(self, obj: ArticulatedObject, image_size: int, rng: np.random.Generator):
         self.obj = obj
         self.image_size = image_size
-        self.scene = sapien.Scene([_render_system()])
+        self.scene = sapien.Scene([render_system()])
         slot_of = {id(p): k for k, p in enumerate(part_slots(obj))}
         self.entities: list[sapien.Entity] = []
         lut: dict[int, int] = {}
         for part in obj.parts:
             body = sapien.render.RenderBodyComponent()
-            body.attach(_render_shape(part, rng))
+            body.attach(render_shape(part, rng))
             entity = sapien.Entity()
             entity.set_name(part.name)
             entity.add_component(body)

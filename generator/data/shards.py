@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from generator.articulated import atomic_write_bytes
+from generator.atomic_files import atomic_write_bytes
 
 log = logging.getLogger(__name__)
 

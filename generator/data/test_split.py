@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from generator.articulated import atomic_write_bytes, save_bundle
+from generator.atomic_files import atomic_write_bytes
+from generator.bundle import save_bundle
 
 TEST_SEED0 = 900_000
 

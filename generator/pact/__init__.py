@@ -1,12 +1,13 @@
 """PAct: part-decomposed articulated object generation (see docs/pact.md and the paper).
 
-Modules: ``ss_vae`` (occupancy <-> latent), ``image_encoder`` (ViT / DINOv2 ViT-L/14),
-``part_flow`` (part-aware flow transformer), ``flow`` (rectified flow loss and sampler),
-``checkpoint`` (safetensors + JSON), ``stage1`` (configs, build, generate), ``model_configs``,
-``preprocess`` (foreground crop before the encoder), ``foreground`` (silhouette U-Net).
+Three subpackages: ``model`` (the networks: ``ss_vae`` occupancy <-> latent, ``image_encoder``,
+``part_flow`` the part-aware flow transformer, ``flow`` rectified flow, ``stage1`` and ``stage2``
+as wholes, ``articulation`` the head, ``checkpoint``, ``model_configs``, ``preprocess``,
+``foreground``), ``training`` (data pipelines and the training entry points) and ``inference``
+(``generate.PActGenerator`` and what turns samples into articulated objects).
 """
 
-from . import (  # noqa: F401  (register the models)
+from generator.pact.model import (  # noqa: F401  (register the models)
     articulation,
     foreground,
     image_encoder,
@@ -15,11 +16,11 @@ from . import (  # noqa: F401  (register the models)
     ss_vae,
     stage2_flow,
 )
-from .checkpoint import load_checkpoint, save_checkpoint
-from .flow import FlowTrainConfig, SamplerConfig, flow_loss, sample
-from .model_configs import build
-from .ss_vae import vae_loss
-from .stage1 import Stage1Config, build_stage1, generate_parts, load_config
+from generator.pact.model.checkpoint import load_checkpoint, save_checkpoint
+from generator.pact.model.flow import FlowTrainConfig, SamplerConfig, flow_loss, sample
+from generator.pact.model.model_configs import build
+from generator.pact.model.ss_vae import vae_loss
+from generator.pact.model.stage1 import Stage1Config, build_stage1, generate_parts, load_config
 
 __all__ = [
     "FlowTrainConfig",

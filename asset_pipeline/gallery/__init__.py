@@ -1,0 +1,2 @@
+"""The gallery of an output folder (``pact gallery``): the page (:mod:`.page`) and its
+browser-side viewer (``web/``)."""
