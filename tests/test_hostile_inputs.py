@@ -136,6 +136,59 @@ def test_a_photo_that_became_unreadable_sets_its_old_asset_aside(tmp_path):
     assert len(FolderSource(out)) == 0
 
 
+VALIDATED = ConvertSettings(generator="retrieval", preview=False, texture=False, fidelity=False)
+
+
+def _validation_says(monkeypatch, status: str) -> None:
+    """Replace SAPIEN validation by a report of ``status`` (one load check)."""
+    import asset_pipeline.validate as validate
+    from asset_pipeline.validate import Check, Report, write_report
+
+    def fake(staging, **_options) -> Report:
+        passed = status != "failed"
+        check = Check("sapien_load", "load", "asset", passed, message=f"says {status}")
+        report = Report(asset=Path(staging).name, status=status, checks=[check])
+        write_report(report, staging)
+        return report
+
+    monkeypatch.setattr(validate, "validate_asset", fake)
+
+
+def _good_then_failing(tmp_path: Path, monkeypatch) -> tuple[Path, Path]:
+    """A good asset of the microwave in OUT, then validation of every item fails."""
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    _validation_says(monkeypatch, "ok")
+    assert [r.status for r in run_convert(images, out, VALIDATED).results] == ["ok"]
+    _validation_says(monkeypatch, "failed")
+    return images, out
+
+
+def _report_status(folder: Path) -> str:
+    return json.loads((folder / "report.json").read_text())["status"]
+
+
+def test_failing_twice_in_a_row_keeps_the_last_good_asset_in_previous(tmp_path, monkeypatch):
+    images, out = _good_then_failing(tmp_path, monkeypatch)
+    kept = out / ".previous" / "microwave_t0000001"
+    for _rerun in range(2):  # the same command twice: the second failure must not lose it
+        (failed,) = run_convert(images, out, VALIDATED, force=True).failed
+        assert failed.stage == "validate"
+        assert _report_status(kept) == "ok" and (kept / "model.urdf").is_file()
+        assert _rows(out) == {"microwave_t0000001": "failed"}
+    assert _report_status(out / "microwave_t0000001") == "failed"  # kept to be looked at
+    assert str(kept) in failed.reason  # the later failure still says where the good one is
+
+
+def test_the_first_failure_says_where_the_good_asset_went(tmp_path, monkeypatch):
+    images, out = _good_then_failing(tmp_path, monkeypatch)
+    (failed,) = run_convert(images, out, VALIDATED, force=True).failed
+    kept = out / ".previous" / "microwave_t0000001"
+    assert "validation failed" in failed.reason and f"moved to {kept}" in failed.reason
+    with Catalog(out, readonly=True) as cat:
+        assert f"moved to {kept}" in cat.get("microwave_t0000001").failure_reason
+
+
 def _convert_or_die(job: tuple, report) -> batch.ItemResult:
     """A worker that is killed (SIGKILL) while it holds the oven."""
     if job[0].name == "oven_t0000001":

@@ -25,7 +25,11 @@ Guarantees
   staging folder.
 - Nothing done is lost: when an item that had a good asset fails (its photo became
   unreadable, validation now fails), the old asset is moved to ``OUT/.previous/<id>/``
-  and the failure says so; the catalog never calls a folder ok that is not.
+  and the failure's reason says where it is (a later failure says where it is still
+  kept). ``OUT/.previous/<id>/`` only ever holds the last good asset: an asset that
+  failed validation is installed as ``OUT/<id>`` (catalogued failed, to be looked at)
+  and deleted, never set aside, when the item runs again (:func:`set_aside`). The
+  catalog never calls a folder ok that is not.
 - The catalog agrees with the disk: at the start of a run every catalogued asset is
   checked (:func:`asset_pipeline.catalog.registry.folder_problem`); a damaged one (a deleted
   ``model.urdf``, ``collision/`` gone, a report that disagrees) is marked failed with
@@ -405,33 +409,78 @@ def clean_staging(out: Path) -> None:
     shutil.rmtree(out / STAGING, ignore_errors=True)
 
 
+def holds_good_asset(folder: Path) -> bool:
+    """True when ``folder`` holds a complete asset that did not fail: every file there
+    (:func:`~asset_pipeline.catalog.registry.folder_problem`) and a report, if any, that
+    says ok or repaired (an asset built without validation has none)."""
+    if folder_problem(folder, validated=False) is not None:
+        return False
+    try:
+        report = read_report(folder)
+    except ReportFormatError:
+        return False
+    return report is None or report.ok
+
+
+def _discard(out: Path, folder: Path) -> None:
+    """Remove ``folder`` (renamed into ``OUT/.staging`` first, so it goes at once)."""
+    trash = out / STAGING / f"{folder.name}.discard.{os.getpid()}.{time.time_ns()}"
+    trash.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(folder, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+
+
 def set_aside(out: Path, asset_id: str) -> Path | None:
-    """Move ``OUT/<id>`` (if any) to ``OUT/.previous/<id>`` (replacing an older one)."""
+    """Clear ``OUT/<id>`` for a failed item; return where its good asset went, if any.
+
+    ``OUT/.previous/<id>`` keeps the last good asset and nothing else: a good asset
+    (:func:`holds_good_asset`) at ``OUT/<id>`` is moved there (replacing an older good
+    one); a failed or damaged folder at ``OUT/<id>`` (an earlier failure of the same
+    item) is deleted and never replaces the good copy.
+    """
     folder = out / asset_id
-    if not folder.exists():
+    if not folder.exists() and not folder.is_symlink():
+        return None
+    if not holds_good_asset(folder):
+        log.info("%s: removing the failed or damaged folder of an earlier run", folder)
+        _discard(out, folder)
         return None
     dest = out / PREVIOUS / asset_id
-    shutil.rmtree(dest, ignore_errors=True)
+    if dest.exists():
+        _discard(out, dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     os.replace(folder, dest)
     return dest
 
 
-def _install(staged: Path, out: Path, asset_id: str, failed: bool) -> Path:
-    """Move a complete staged asset to ``OUT/<id>``. An older asset there is deleted, or
-    kept in ``OUT/.previous/<id>`` when the new one failed validation."""
+def previous_note(out: Path, asset_id: str, moved: Path | None) -> str | None:
+    """What a failure of ``asset_id`` says about its last good asset: where it was just
+    moved (``moved``) or where it is still kept from an earlier failure."""
+    if moved is not None:
+        return f"the previous good asset was moved to {moved}"
+    kept = out / PREVIOUS / asset_id
+    if kept.is_dir():
+        return f"the last good asset is kept in {kept}"
+    return None
+
+
+def _install(staged: Path, out: Path, asset_id: str, failed: bool) -> tuple[Path, Path | None]:
+    """Move a complete staged asset to ``OUT/<id>``; return it and where the older asset
+    went (None when it was deleted or there was none). An older asset there is deleted
+    when the new one passed, else cleared by :func:`set_aside` (a good one kept in
+    ``OUT/.previous/<id>``)."""
     final = out / asset_id
-    old = None
-    if final.exists():
+    old = moved = None
+    if final.exists() or final.is_symlink():
         if failed:
-            set_aside(out, asset_id)
+            moved = set_aside(out, asset_id)
         else:
             old = out / STAGING / f"{asset_id}.old.{os.getpid()}.{time.time_ns()}"
             os.replace(final, old)
     os.replace(staged, final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
-    return final
+    return final, moved
 
 
 def reconcile(catalog: Catalog, out: Path) -> list[str]:
@@ -496,15 +545,21 @@ def _register(catalog: Catalog, out: Path, r: ItemResult, settings_hash: str) ->
         warnings=tuple(r.warnings),
     )
     if r.path is not None:
-        final = _install(Path(r.path), out, r.id, failed=r.status == "failed")
+        failed = r.status == "failed"
+        final, moved = _install(Path(r.path), out, r.id, failed=failed)
         r.path = str(final)
+        if failed:
+            note = previous_note(out, r.id, moved)
+            if note is not None:
+                r.reason = f"{r.reason} ({note})"
+            provenance["failure_reason"] = r.reason
         rec = register_asset_dir(catalog, final, **provenance)
-        if r.status == "failed" and rec.status != "failed":
+        if failed and rec.status != "failed":
             catalog.upsert_asset(replace(rec, status="failed", failure_reason=r.reason))
         return
-    moved = set_aside(out, r.id)
-    if moved is not None:
-        r.reason = f"{r.reason} (the previous asset was moved to {moved})"
+    note = previous_note(out, r.id, set_aside(out, r.id))
+    if note is not None:
+        r.reason = f"{r.reason} ({note})"
     catalog.record_failure(r.id, r.reason or "unknown failure", category=r.category, **provenance)
 
 
