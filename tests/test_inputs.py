@@ -441,6 +441,8 @@ def test_discover_refuses_a_file_that_is_not_a_photo(tmp_path: Path) -> None:
         "INDEX.HTML",
         "gallery",
         "Gallery",
+        "gallery_web",
+        "Gallery_Web",
     ],
 )
 def test_reserved_ids_refused(asset_id: str) -> None:
@@ -449,6 +451,19 @@ def test_reserved_ids_refused(asset_id: str) -> None:
         check_hints({"id": asset_id}, "photos/c.json")
     assert str(e.value).startswith("photos/c.json: id: ")
     assert is_reserved_id(".staging")
+
+
+def test_every_name_the_output_folder_uses_is_reserved() -> None:
+    """An asset folder must never take the place of the catalog, the gallery's files or
+    the run's own folders (the gallery copies its viewer into OUT/gallery_web/)."""
+    from asset_pipeline.catalog import batch
+    from asset_pipeline.catalog.registry import CATALOG_NAME
+    from asset_pipeline.gallery import page
+
+    used = [CATALOG_NAME, batch.STAGING, batch.PREVIOUS, batch.LOCK_NAME]
+    used += ["index.html", "gallery", page.WEB_DIR_NAME]
+    assert [name for name in used if not is_reserved_id(name)] == []
+    assert asset_id_for(page.WEB_DIR_NAME)[0] == f"{page.WEB_DIR_NAME}_photo"
 
 
 @pytest.mark.parametrize(

@@ -14,10 +14,13 @@ import unicodedata
 ID_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,127}$")
 ID_MAX_LENGTH = 128
 
-#: Names an asset folder must not take because the output folder already uses them
-#: for the catalog (and SQLite's side files) and the gallery. Compared
-#: case-insensitively (macOS and Windows file systems are). Names starting with "."
-#: (``.staging``) are reserved too; :data:`ID_PATTERN` already refuses them.
+#: Names an asset folder must not take because the output folder already uses them:
+#: the catalog and SQLite's side files (asset_pipeline.catalog.registry.CATALOG_NAME),
+#: the gallery's page, per-asset folder and viewer files (asset_pipeline.gallery.page:
+#: ``index.html``, ``gallery/``, ``WEB_DIR_NAME``). Compared case-insensitively (macOS
+#: and Windows file systems are). Names starting with "." (``.staging``, ``.previous``,
+#: ``.lock`` of asset_pipeline.catalog.batch) are reserved too; :data:`ID_PATTERN`
+#: already refuses them.
 RESERVED_IDS = frozenset(
     {
         "registry.sqlite",
@@ -26,6 +29,7 @@ RESERVED_IDS = frozenset(
         "registry.sqlite-journal",
         "index.html",
         "gallery",
+        "gallery_web",
     }
 )
 
