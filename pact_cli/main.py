@@ -587,7 +587,14 @@ def convert(
                 on_stage=on_stage,
                 on_result=on_result,
             )
-    except (InputError, OutputFolderError, OutputLockedError, CatalogError, ValueError) as e:
+    except (
+        InputError,
+        OutputFolderError,
+        OutputLockedError,
+        CatalogError,
+        ValueError,
+        OSError,  # a file the run could not read or write: "PATH: what the system says"
+    ) as e:
         raise fail(e) from e
     finally:
         if log_file is not None and log_file is not sys.stdout:

@@ -3,6 +3,7 @@ failure, or correct handling, never as a traceback, a silent skip, a false ok or
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -279,6 +280,41 @@ def test_output_and_input_folders_are_checked_before_anything_is_made(tmp_path):
         ["convert", str(images), "--out", str(tmp_path / "o2"), "--log-json", "/nope/log.jsonl"],
     )
     assert res.exit_code == 2 and "/nope/log.jsonl" in res.output
+
+
+@pytest.mark.parametrize(
+    "code, words",
+    [(errno.EROFS, "it is on a read-only file system"), (errno.EACCES, "no permission to write")],
+)
+@pytest.mark.parametrize("where", ["the lock", "a new file"])
+def test_an_output_folder_that_cannot_be_written_is_one_error_line(
+    tmp_path, monkeypatch, code, words, where
+):
+    """A read-only mount or a folder without write permission (simulated: the tests run
+    as root): one error line naming the folder, nothing converted."""
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    out.mkdir()
+    if where == "a new file":
+        (out / ".lock").touch()  # an existing file opens; nothing new can be made
+    real_open = os.open
+
+    def refusing_open(path, flags, *args, **kwargs):
+        p = Path(path)
+        if p.parent == out and (
+            p.name == ".lock" if where == "the lock" else flags & os.O_CREAT and not p.exists()
+        ):
+            raise OSError(code, os.strerror(code), str(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", refusing_open)
+    res = runner.invoke(
+        app, ["convert", str(images), "--out", str(out), "--generator", "retrieval"]
+    )
+    assert res.exit_code == 2, res.output
+    assert isinstance(res.exception, SystemExit)  # an exit code, not a traceback
+    assert f"error: {out}: cannot write to the output folder: {words}" in res.output
+    assert not (out / "registry.sqlite").exists() and not (out / "microwave_t0000001").exists()
 
 
 def test_a_damaged_catalog_is_one_error_line(tmp_path):

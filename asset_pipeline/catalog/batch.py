@@ -14,7 +14,9 @@ Guarantees
 ----------
 - One run per output folder: the driver holds ``OUT/.lock`` (an exclusive ``flock``)
   for the whole run; a second run on the same folder stops at once with
-  :class:`OutputLockedError` naming the process that holds it.
+  :class:`OutputLockedError` naming the process that holds it. An output folder that
+  cannot be written (a read-only file system, no write permission) stops the run
+  before anything is converted with :class:`OutputFolderError` naming it.
 - Unique ids: an item's id is its hints' ``id`` or its photo's name (slugified when
   needed, :func:`asset_pipeline.inputs.asset_id_for`). Two items of a batch with the
   same id both fail, and so does an item whose id the catalog gives to another photo;
@@ -46,6 +48,7 @@ Guarantees
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import hashlib
 import io
@@ -53,6 +56,7 @@ import json
 import logging
 import os
 import shutil
+import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -371,11 +375,38 @@ def _convert_in_worker(job: tuple[InputItem, str, ConvertSettings], report: Call
 # --------------------------------------------------------------------------- the output folder
 
 
+def unwritable_output(out: Path, e: OSError) -> OutputFolderError:
+    """The error for an output folder that cannot be written: it names the folder, says
+    why (in the system's words when there is no plainer one) and what to do."""
+    if e.errno == errno.EROFS:
+        why = "it is on a read-only file system; choose a writable --out"
+    elif e.errno in (errno.EACCES, errno.EPERM):
+        why = "no permission to write there; make it writable for you or choose another --out"
+    else:
+        why = f"{e.strerror or e}; check the folder and its disk, or choose another --out"
+    return OutputFolderError(f"{out}: cannot write to the output folder: {why}")
+
+
+def check_writable(out: Path) -> None:
+    """Raise OutputFolderError (:func:`unwritable_output`) unless a file can be created
+    in ``out`` (a read-only mount, a folder without write permission)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=out)
+    except OSError as e:
+        raise unwritable_output(out, e) from e
+    os.close(fd)
+    os.unlink(probe)
+
+
 @contextlib.contextmanager
 def output_lock(out: Path) -> Iterator[None]:
-    """Hold ``OUT/.lock`` exclusively for the block; raise OutputLockedError when taken."""
+    """Hold ``OUT/.lock`` exclusively for the block; raise OutputLockedError when taken
+    and OutputFolderError when the folder cannot be written."""
     path = out / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise unwritable_output(out, e) from e
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -385,8 +416,16 @@ def output_lock(out: Path) -> Iterator[None]:
                 f"{out}: another pact run (pid {holder}) is writing to this folder; "
                 "wait for it to finish or choose another --out"
             ) from e
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        except OSError as e:
+            raise OutputFolderError(
+                f"{path}: cannot be locked ({e.strerror or e}); the output folder must be on a "
+                "file system that supports flock (some network file systems do not)"
+            ) from e
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, str(os.getpid()).encode(), 0)
+        except OSError as e:
+            raise unwritable_output(out, e) from e
         yield
     finally:
         os.close(fd)  # closing releases the lock
@@ -713,6 +752,7 @@ def run_convert(
     if (out / CATALOG_NAME).exists() and not (out / CATALOG_NAME).is_file():
         raise OutputFolderError(f"{out / CATALOG_NAME}: is not a file; move it away")
     with output_lock(out):
+        check_writable(out)
         clean_staging(out)
         version = generator_version(settings.generator)
         settings_hash = settings.digest(version)
