@@ -9,6 +9,7 @@ import json
 import os
 import shutil
 import signal
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -83,6 +84,53 @@ def test_an_id_the_catalog_gives_to_another_photo_is_refused(tmp_path):
     assert "already belongs to" in refused.reason and "microwave_t0000001.png" in refused.reason
     assert (out / "kitchen" / "asset.json").read_bytes() == before
     assert _rows(out) == {"kitchen": "ok"}
+
+
+def _edit(photo: Path) -> None:
+    """Change one pixel of ``photo`` (its input hash changes)."""
+    img = Image.open(photo)
+    img.load()
+    img.putpixel((0, 0), tuple(255 - v for v in img.getpixel((0, 0))))
+    img.save(photo)
+
+
+def test_an_edited_photo_converted_from_another_directory_is_not_another_photo(
+    tmp_path, monkeypatch
+):
+    _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    monkeypatch.chdir(tmp_path)
+    assert [r.status for r in run_convert("in", "out", FAST).results] == ["ok"]
+    with Catalog(out, readonly=True) as cat:
+        stored = cat.get("microwave_t0000001").source_image
+    assert stored == str(tmp_path / "in" / "microwave_t0000001.png")  # absolute
+    _edit(tmp_path / "in" / "microwave_t0000001.png")
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    summary = run_convert("../in", out, FAST)
+    assert [(r.id, r.status) for r in summary.results] == [("microwave_t0000001", "ok")]
+
+
+def test_a_relative_photo_path_of_an_older_catalog_is_not_another_photo(tmp_path, monkeypatch):
+    images = _photos(tmp_path / "in", ["microwave_t0000001", "oven_t0000001"])
+    out = tmp_path / "out"
+    run_convert(images, out, FAST)
+    with Catalog(out) as cat:  # as an older pact stored them: relative to its directory
+        for name, photo in (
+            ("microwave_t0000001", "microwave_t0000001"),
+            ("oven_t0000001", "stove"),
+        ):
+            row = cat.get(name)  # the oven's names a photo of another name
+            row = replace(row, source_image=f"in/{photo}.png", path=str(cat.asset_dir(row)))
+            cat.upsert_asset(row, row.parts, row.checks)
+    for name in ("microwave_t0000001", "oven_t0000001"):
+        _edit(images / f"{name}.png")
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")  # "in/..." names no file from here
+    results = {r.id: r for r in run_convert(images, out, FAST).results}
+    assert results["microwave_t0000001"].status == "ok"
+    assert results["oven_t0000001"].status == "failed"
+    assert "already belongs to in/stove.png" in results["oven_t0000001"].reason
 
 
 def test_a_second_run_on_the_same_out_stops_and_touches_nothing(tmp_path):

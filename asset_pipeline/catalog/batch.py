@@ -176,7 +176,7 @@ def _result_for(item: InputItem, settings: ConvertSettings) -> ItemResult:
         id=asset_id,
         name=item.name,
         status="failed",
-        source_image=str(item.image_path),
+        source_image=str(item.image_path.resolve()),  # the same from any working directory
         source_hash=item.input_hash,
         generator=settings.generator,
         id_note=note,
@@ -663,6 +663,27 @@ def _ray_results(
                 )
 
 
+def same_photo(stored: str, image_path: Path) -> bool:
+    """Whether a catalog row's ``source_image`` names the photo ``image_path``.
+
+    Rows store the photo's absolute, resolved path: same when both resolve to one
+    file. Rows of older runs may hold a path relative to that run's working directory,
+    which is not known: such a path also names the photo when the photo's absolute path
+    ends with it. And a stored path that names no file any more (a relative one seen
+    from another directory, a moved photo folder) names the photo when its file name is
+    the photo's: there is no other photo to protect, and an edited photo converted again
+    from elsewhere must not be refused. Only a path to another existing file, or to a
+    file of another name, makes the id another photo's.
+    """
+    stored_path, photo = Path(stored), image_path.resolve()
+    if stored_path.resolve() == photo:
+        return True
+    tail = stored_path.parts
+    if not stored_path.is_absolute() and ".." not in tail and photo.parts[-len(tail) :] == tail:
+        return True
+    return stored_path.name == photo.name and not stored_path.resolve().is_file()
+
+
 def _plan(
     items: list[InputItem],
     catalog: Catalog,
@@ -693,8 +714,8 @@ def _plan(
         if (
             row is not None
             and row.source_image is not None
-            and Path(row.source_image).resolve() != item.image_path.resolve()
             and row.source_hash != item.input_hash
+            and not same_photo(row.source_image, item.image_path)
         ):
             r = _result_for(item, settings)
             r.stage, r.reason = (
