@@ -9,6 +9,7 @@ import json
 import os
 import shutil
 import signal
+import sqlite3
 from dataclasses import replace
 from pathlib import Path
 
@@ -363,6 +364,41 @@ def test_an_output_folder_that_cannot_be_written_is_one_error_line(
     assert isinstance(res.exception, SystemExit)  # an exit code, not a traceback
     assert f"error: {out}: cannot write to the output folder: {words}" in res.output
     assert not (out / "registry.sqlite").exists() and not (out / "microwave_t0000001").exists()
+
+
+@pytest.mark.parametrize("fault", ["the catalog", "the lock"])
+def test_a_disk_full_before_the_run_is_called_full_and_the_catalog_is_kept(
+    tmp_path, monkeypatch, fault
+):
+    images = _photos(tmp_path / "in", ["microwave_t0000001", "oven_t0000001"])
+    out = tmp_path / "out"
+    run_convert(images, out, FAST)
+    (images / "oven_t0000001.json").write_text('{"height": 0.7}')  # something to do
+    if fault == "the catalog":  # SQLite in WAL mode on a full disk: "disk I/O error"
+        real = sqlite3.connect
+
+        class FullDisk(sqlite3.Connection):
+            def execute(self, sql, *args):
+                if sql.upper().startswith("PRAGMA JOURNAL_MODE"):
+                    raise sqlite3.OperationalError("disk I/O error")
+                return super().execute(sql, *args)
+
+        monkeypatch.setattr(sqlite3, "connect", lambda *a, **k: real(*a, factory=FullDisk, **k))
+    else:
+
+        def no_space(fd, data, offset):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(os, "pwrite", no_space)
+    res = runner.invoke(
+        app, ["convert", str(images), "--out", str(out), "--generator", "retrieval"]
+    )
+    assert res.exit_code == 2 and isinstance(res.exception, SystemExit), res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("error:")]
+    assert line.startswith(f"error: {out}: cannot write") and "the disk is full" in line
+    assert "damaged" not in line and "not a readable catalog" not in line
+    monkeypatch.undo()
+    assert _rows(out) == {"microwave_t0000001": "ok", "oven_t0000001": "ok"}
 
 
 def test_a_damaged_catalog_is_one_error_line(tmp_path):

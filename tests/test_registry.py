@@ -140,3 +140,51 @@ def test_records_and_table(tmp_path: Path) -> None:
     console.print(format_table([rec, AssetRecord(id="z", status="failed", failure_reason="OOM")]))
     text = console.export_text()
     assert "prismatic,revolute" in text and "0.60x0.80x0.90" in text and "OOM" in text
+
+
+def _failing_sqlite(monkeypatch: pytest.MonkeyPatch, message: str, when: str) -> None:
+    """Connections whose statements starting with ``when`` raise SQLite's ``message``, as
+    on a full disk (the WAL mode's shared memory cannot grow: "disk I/O error")."""
+    real = sqlite3.connect
+
+    class FullDisk(sqlite3.Connection):
+        def execute(self, sql: str, *args: object) -> sqlite3.Cursor:
+            if sql.lstrip().upper().startswith(when):
+                raise sqlite3.OperationalError(message)
+            return super().execute(sql, *args)
+
+    monkeypatch.setattr(sqlite3, "connect", lambda *a, **k: real(*a, factory=FullDisk, **k))
+
+
+@pytest.mark.parametrize("message", ["disk I/O error", "database or disk is full"])
+@pytest.mark.parametrize("when", ["PRAGMA JOURNAL_MODE", "BEGIN IMMEDIATE"])
+def test_a_full_disk_is_never_called_a_damaged_catalog(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, message: str, when: str
+) -> None:
+    out = tmp_path / "out"
+    with Catalog(out) as cat:
+        register_asset_dir(cat, write_asset(out / "cab_a", "cab_a"))
+    before = (out / "registry.sqlite").read_bytes()
+    _failing_sqlite(monkeypatch, message, when)
+    with pytest.raises(CatalogError) as e, Catalog(out) as cat:
+        cat.record_failure("cab_b", "x")
+    text = str(e.value)
+    assert text.startswith(f"{out}: cannot write the catalog registry.sqlite")
+    assert "the disk is full" in text and message in text
+    assert "damaged" not in text and "not a readable catalog" not in text
+    monkeypatch.undo()
+    assert (out / "registry.sqlite").read_bytes() == before
+    with Catalog(out, readonly=True) as cat:
+        assert [r.id for r in cat.query()] == ["cab_a"]
+
+
+def test_a_real_sqlite_full_error_is_a_full_disk(tmp_path: Path) -> None:
+    """SQLite's own SQLITE_FULL (the page limit reached, as a full disk gives it)."""
+    out = tmp_path / "out"
+    with Catalog(out) as cat:
+        register_asset_dir(cat, write_asset(out / "cab_a", "cab_a"))
+        pages = cat.conn.execute("PRAGMA page_count").fetchone()[0]
+        cat.conn.execute(f"PRAGMA max_page_count = {pages}")
+        with pytest.raises(CatalogError, match=f"^{out}: .*: the disk is full") as e:
+            cat.record_failure("cab_b", "x" * 100_000)
+        assert "damaged" not in str(e.value)

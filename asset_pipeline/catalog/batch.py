@@ -378,7 +378,9 @@ def _convert_in_worker(job: tuple[InputItem, str, ConvertSettings], report: Call
 def unwritable_output(out: Path, e: OSError) -> OutputFolderError:
     """The error for an output folder that cannot be written: it names the folder, says
     why (in the system's words when there is no plainer one) and what to do."""
-    if e.errno == errno.EROFS:
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        why = "the disk is full (no space left, or the quota is used up); free some space or choose another --out"
+    elif e.errno == errno.EROFS:
         why = "it is on a read-only file system; choose a writable --out"
     elif e.errno in (errno.EACCES, errno.EPERM):
         why = "no permission to write there; make it writable for you or choose another --out"

@@ -23,6 +23,10 @@ Concurrency: WAL journal; one writer at a time (the batch driver) and any number
 of readers (``pact ls``, the gallery). Every write of an asset is one transaction,
 so a reader never sees an asset without its parts and checks.
 
+Errors: :class:`CatalogError` names the file. SQLite's errors that blame the disk or
+the folder (full, read-only, an I/O error: :func:`disk_fault`) are
+:class:`CatalogDiskError`, naming the folder; only the others call the file damaged.
+
 Resumable batches: :meth:`Catalog.is_done` is true only for an asset built from the
 same input and settings whose status is 'ok' or 'repaired' and whose folder still
 exists. Failed items are retried on a rerun.
@@ -117,6 +121,39 @@ CREATE TABLE IF NOT EXISTS checks (
 
 class CatalogError(RuntimeError):
     """The catalog file is missing, unreadable or of an unsupported schema."""
+
+
+class CatalogDiskError(CatalogError):
+    """The catalog cannot be written or read because of its disk or folder (full,
+    read-only, failing), not because of the file; the message names the folder."""
+
+
+#: SQLite primary result codes (the low byte of ``sqlite_errorcode``) that blame the
+#: disk or the folder, never the catalog file's content, and what to tell the user.
+_DISK_FAULTS = {
+    8: "the folder or the catalog file is read-only",  # SQLITE_READONLY
+    10: "the disk is full or failing (a disk I/O error)",  # SQLITE_IOERR
+    13: "the disk is full",  # SQLITE_FULL
+    14: "the catalog file cannot be opened or created there",  # SQLITE_CANTOPEN
+}
+#: The same faults by SQLite's message, for errors that carry no code.
+_DISK_FAULT_WORDS = {
+    "readonly database": 8,
+    "disk i/o error": 10,
+    "database or disk is full": 13,
+    "unable to open database file": 14,
+}
+
+
+def disk_fault(e: sqlite3.Error) -> str | None:
+    """What is wrong with the disk or folder when SQLite's error ``e`` blames them (a
+    full disk says "database or disk is full" or, in WAL mode, "disk I/O error"), else
+    None (the file itself may be at fault)."""
+    code = getattr(e, "sqlite_errorcode", None)
+    if code is None:
+        text = str(e).lower()
+        code = next((c for words, c in _DISK_FAULT_WORDS.items() if words in text), None)
+    return None if code is None else _DISK_FAULTS.get(code & 0xFF)
 
 
 # --------------------------------------------------------------------------- records
@@ -215,6 +252,8 @@ def _database_errors(method: Callable) -> Callable:
         except sqlite3.IntegrityError:  # a caller's mistake, not a damaged file
             raise
         except sqlite3.DatabaseError as e:
+            if disk_fault(e) is not None:
+                raise self.disk_error(e) from e
             raise CatalogError(
                 f"{self.path}: the catalog is damaged or not a catalog ({e}); move it away "
                 "and convert again to start a new one"
@@ -246,11 +285,16 @@ class Catalog:
                 raise CatalogError(
                     f"{self.path}: no catalog here (build assets into this folder first)"
                 )
-            uri = f"{self.path.resolve().as_uri()}?mode=ro"
-            conn = sqlite3.connect(uri, uri=True, timeout=30.0, isolation_level=None)
+            target, uri = f"{self.path.resolve().as_uri()}?mode=ro", True
         else:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            conn = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+            target, uri = str(self.path), False
+        try:
+            conn = sqlite3.connect(target, uri=uri, timeout=30.0, isolation_level=None)
+        except sqlite3.Error as e:
+            if disk_fault(e) is not None:
+                raise self.disk_error(e) from e
+            raise CatalogError(f"{self.path}: cannot open the catalog: {e}") from e
         try:
             conn.execute("PRAGMA busy_timeout = 30000")
             if not self.readonly:
@@ -260,12 +304,24 @@ class Catalog:
             self._check_schema(conn)
         except sqlite3.DatabaseError as e:
             conn.close()
+            if disk_fault(e) is not None:
+                raise self.disk_error(e) from e
             raise CatalogError(f"{self.path}: not a readable catalog: {e}") from e
         except BaseException:
             conn.close()
             raise
         self._conn = conn
         return self
+
+    def disk_error(self, e: sqlite3.Error) -> CatalogDiskError:
+        """The error for SQLite's ``e`` when :func:`disk_fault` blames the disk or folder:
+        it names the folder and never calls the catalog damaged."""
+        what = "write" if not self.readonly else "read"
+        return CatalogDiskError(
+            f"{self.root}: cannot {what} the catalog {self.path.name} in this folder: "
+            f"{disk_fault(e)} (SQLite: {e}); free space on its disk or make the folder "
+            f"writable, then run again (keep {self.path.name}: the file is not at fault)"
+        )
 
     def _check_schema(self, conn: sqlite3.Connection) -> None:
         version = conn.execute("PRAGMA user_version").fetchone()[0]
