@@ -10,6 +10,9 @@ import os
 import shutil
 import signal
 import sqlite3
+import subprocess
+import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -143,6 +146,62 @@ def test_a_second_run_on_the_same_out_stops_and_touches_nothing(tmp_path):
             run_convert(images, out, FAST)
     assert (out / ".staging" / "busy").is_dir()
     assert not (out / "registry.sqlite").exists()
+
+
+def test_deleting_the_lock_file_during_a_run_lets_no_second_run_in(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    out.mkdir()
+    busy = out / ".staging" / f"{os.getpid()}.{time.time_ns()}" / "microwave_t0000001"
+    with batch.output_lock(out):  # the first run
+        busy.mkdir(parents=True)  # its item in progress
+        (out / ".lock").unlink()  # someone cleans up hidden files
+        with pytest.raises(OutputLockedError, match=f"{out}: another pact run"):
+            run_convert(images, out, FAST)
+        assert busy.is_dir()
+    assert not (out / "registry.sqlite").exists()
+
+
+def test_a_lock_file_replaced_while_it_is_locked_is_locked_again(tmp_path, monkeypatch):
+    """Another process deletes OUT/.lock between our open and our flock: the flock is on
+    a file nobody else sees, so it is taken again on the file now at OUT/.lock."""
+    out = tmp_path / "out"
+    out.mkdir()
+    real_flock, replaced = fcntl.flock, []
+    lock = out / ".lock"
+
+    def racing_flock(fd, operation):
+        if not replaced and lock.exists() and os.fstat(fd).st_ino == lock.stat().st_ino:
+            replaced.append(fd)
+            lock.unlink()
+            lock.write_text("")  # the other process's new lock file
+        return real_flock(fd, operation)
+
+    monkeypatch.setattr(fcntl, "flock", racing_flock)
+    with batch.output_lock(out):
+        assert replaced and lock.read_text() == str(os.getpid())
+        fd = os.open(lock, os.O_RDWR)  # what a second run would lock
+        try:
+            with pytest.raises(BlockingIOError):
+                real_flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        finally:
+            os.close(fd)
+
+
+def test_a_run_removes_only_the_staging_folders_of_dead_processes(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()  # a pid that is no longer running
+    now = time.time_ns()
+    dead = out / ".staging" / f"{child.pid}.{now}"
+    live = out / ".staging" / f"{os.getppid()}.{now}"  # pytest's parent: alive
+    for folder in (dead, live):
+        (folder / "microwave_t0000001").mkdir(parents=True)
+    assert [r.status for r in run_convert(images, out, FAST).results] == ["ok"]
+    assert not dead.exists()
+    assert (live / "microwave_t0000001").is_dir()
+    assert os.listdir(out / ".staging") == [live.name]
 
 
 def test_rerun_rebuilds_assets_whose_files_were_deleted(tmp_path):

@@ -12,9 +12,10 @@ an item: a problem there is a warning and the asset goes on without a texture or
 
 Guarantees
 ----------
-- One run per output folder: the driver holds ``OUT/.lock`` (an exclusive ``flock``)
-  for the whole run; a second run on the same folder stops at once with
-  :class:`OutputLockedError` naming the process that holds it. An output folder that
+- One run per output folder: the driver holds an exclusive ``flock`` on ``OUT`` itself
+  and on ``OUT/.lock`` (which names its pid) for the whole run (:func:`output_lock`);
+  a second run on the same folder stops at once with :class:`OutputLockedError` naming
+  the process that holds it, also when ``OUT/.lock`` was deleted meanwhile. An output folder that
   cannot be written (a read-only file system, no write permission) stops the run
   before anything is converted with :class:`OutputFolderError` naming it.
 - Unique ids: an item's id is its hints' ``id`` or its photo's name (slugified when
@@ -23,8 +24,9 @@ Guarantees
   the catalog's own files and hidden names are never ids.
 - Atomic items: a worker assembles the asset in ``OUT/.staging/<pid>.<time>/<id>/`` and
   renames it to ``OUT/<id>`` only when it is complete. A run killed at any moment
-  leaves finished items intact and no half-made ``OUT/<id>``; the next run removes the
-  staging folder.
+  leaves finished items intact and no half-made ``OUT/<id>``; the next run removes
+  what it left in ``OUT/.staging`` (never the folder of a process still alive:
+  :func:`clean_staging`).
 - Nothing done is lost: when an item that had a good asset fails (its photo became
   unreadable, validation now fails), the old asset is moved to ``OUT/.previous/<id>/``
   and the failure's reason says where it is (a later failure says where it is still
@@ -400,37 +402,119 @@ def check_writable(out: Path) -> None:
     os.unlink(probe)
 
 
-@contextlib.contextmanager
-def output_lock(out: Path) -> Iterator[None]:
-    """Hold ``OUT/.lock`` exclusively for the block; raise OutputLockedError when taken
-    and OutputFolderError when the folder cannot be written."""
-    path = out / LOCK_NAME
+#: Attempts at locking ``OUT/.lock`` when another process replaces the file meanwhile.
+LOCK_ATTEMPTS = 5
+
+
+def _locked_error(out: Path, holder: str | None) -> OutputLockedError:
+    return OutputLockedError(
+        f"{out}: another pact run (pid {holder or 'unknown'}) is writing to this folder; "
+        "wait for it to finish or choose another --out"
+    )
+
+
+def _lock_holder(path: Path) -> str | None:
+    """The pid written in the lock file ``path``, or None (no file, nothing written)."""
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        return path.read_text(errors="replace").strip()[:64] or None
+    except OSError:
+        return None
+
+
+def _flock(fd: int, path: Path) -> bool:
+    """Take an exclusive flock on ``fd`` without waiting: False when another holds it."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError as e:
+        raise OutputFolderError(
+            f"{path}: cannot be locked ({e.strerror or e}); the output folder must be on a "
+            "file system that supports flock (some network file systems do not)"
+        ) from e
+    return True
+
+
+def _lock_folder(out: Path) -> int | None:
+    """An flock on the output folder itself (which a run's files can be deleted from, but
+    not the folder): the fd holding it, or None where the file system cannot lock a
+    folder (then ``OUT/.lock`` alone guards the run). OutputLockedError when taken."""
+    try:
+        fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
     except OSError as e:
         raise unwritable_output(out, e) from e
     try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError as e:
+        os.close(fd)
+        raise _locked_error(out, _lock_holder(out / LOCK_NAME)) from e
+    except OSError as e:
+        os.close(fd)
+        log.debug("%s: the folder cannot be flocked (%s); OUT/.lock alone guards it", out, e)
+        return None
+    return fd
+
+
+def _lock_file(out: Path) -> int:
+    """The fd of ``OUT/.lock`` holding an exclusive flock, the pid written in it.
+
+    A lock on a file that was deleted or replaced after it was opened guards nothing:
+    after the flock the file at ``OUT/.lock`` must still be the one locked (same device
+    and inode), else it is opened again (up to :data:`LOCK_ATTEMPTS` times).
+    """
+    path = out / LOCK_NAME
+    for _attempt in range(LOCK_ATTEMPTS):
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError as e:
-            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
-            raise OutputLockedError(
-                f"{out}: another pact run (pid {holder}) is writing to this folder; "
-                "wait for it to finish or choose another --out"
-            ) from e
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as e:
-            raise OutputFolderError(
-                f"{path}: cannot be locked ({e.strerror or e}); the output folder must be on a "
-                "file system that supports flock (some network file systems do not)"
-            ) from e
+            raise unwritable_output(out, e) from e
         try:
+            if not _flock(fd, path):
+                raise _locked_error(out, _lock_holder(path))
+            held = os.fstat(fd)
+            try:
+                now = os.stat(path)
+            except FileNotFoundError:
+                now = None
+            if now is None or (now.st_dev, now.st_ino) != (held.st_dev, held.st_ino):
+                log.debug("%s was replaced while it was being locked; locking it again", path)
+                os.close(fd)
+                continue
             os.ftruncate(fd, 0)
             os.pwrite(fd, str(os.getpid()).encode(), 0)
         except OSError as e:
+            os.close(fd)
             raise unwritable_output(out, e) from e
-        yield
+        except BaseException:
+            os.close(fd)
+            raise
+        return fd
+    raise OutputLockedError(
+        f"{path}: the lock file keeps being replaced by another process; stop the other "
+        "program writing to this folder, or choose another --out"
+    )
+
+
+@contextlib.contextmanager
+def output_lock(out: Path) -> Iterator[None]:
+    """Hold the output folder for the block: raise OutputLockedError when another run
+    holds it and OutputFolderError when the folder cannot be written.
+
+    Two flocks, both dropped by the kernel with the process: on the folder itself (so
+    deleting ``OUT/.lock`` during a run lets no second run in) and on ``OUT/.lock``
+    (which names the holder's pid, and guards the folder alone on a file system that
+    cannot lock folders).
+    """
+    folder_fd = _lock_folder(out)
+    try:
+        file_fd = _lock_file(out)
+        try:
+            yield
+        finally:
+            os.close(file_fd)  # closing releases the lock
     finally:
-        os.close(fd)  # closing releases the lock
+        if folder_fd is not None:
+            os.close(folder_fd)
 
 
 def prepare_output(out: str | Path) -> Path:
@@ -445,9 +529,51 @@ def prepare_output(out: str | Path) -> Path:
     return out
 
 
-def clean_staging(out: Path) -> None:
-    """Remove what a killed run left in ``OUT/.staging``."""
-    shutil.rmtree(out / STAGING, ignore_errors=True)
+def _staging_owner(name: str) -> tuple[int, int] | None:
+    """(pid, time in ns) of an ``OUT/.staging`` entry (``<pid>.<time>``,
+    ``<id>.old.<pid>.<time>``, ``<id>.discard.<pid>.<time>``), None for another name."""
+    parts = name.split(".")
+    if len(parts) < 2 or not (parts[-2].isdigit() and parts[-1].isdigit()):
+        return None
+    return int(parts[-2]), int(parts[-1])
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def clean_staging(out: Path, since: int | None = None) -> None:
+    """Remove what killed runs left in ``OUT/.staging``, never what a live process works on.
+
+    An entry goes when the process named in it (``<pid>.<time>``: the worker that made
+    it) is not alive or is this one; with ``since`` (this run's start, ``time.time_ns()``)
+    also every entry made since (this run's workers' leftovers). The folder goes when
+    empty. A live process's older entry stays: another run may be working in it.
+    """
+    staging = out / STAGING
+    if not staging.is_dir():
+        return
+    me = os.getpid()
+    for entry in sorted(staging.iterdir()):
+        owner = _staging_owner(entry.name)
+        if owner is not None:
+            pid, made = owner
+            if pid != me and _alive(pid) and (since is None or made < since):
+                log.warning("%s: kept: process %d that made it is still running", entry, pid)
+                continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                entry.unlink()
+    with contextlib.suppress(OSError):
+        staging.rmdir()
 
 
 def holds_good_asset(folder: Path) -> bool:
@@ -775,6 +901,7 @@ def run_convert(
     if (out / CATALOG_NAME).exists() and not (out / CATALOG_NAME).is_file():
         raise OutputFolderError(f"{out / CATALOG_NAME}: is not a file; move it away")
     with output_lock(out):
+        started = time.time_ns()
         check_writable(out)
         clean_staging(out)
         version = generator_version(settings.generator)
@@ -805,7 +932,7 @@ def run_convert(
                 results.append(r)
                 if on_result:
                     on_result(r)
-        clean_staging(out)
+        clean_staging(out, since=started)
     return BatchSummary(
         results=results, skipped=skipped, ignored=list(listing.skipped), reconciled=reconciled
     )
