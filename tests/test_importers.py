@@ -200,6 +200,30 @@ def test_errors_name_file_and_field(tmp_path: Path, mutate, field: str) -> None:
     assert not (tmp_path / "out").exists()  # nothing half-written
 
 
+@pytest.mark.parametrize("where", ["relative", "absolute", "symlink"])
+def test_meshes_outside_the_object_folder_are_refused(tmp_path: Path, where: str) -> None:
+    """As for PartNet-Mobility objects (the same rule): an object reads only its own files."""
+    src = make_singapo(tmp_path / "obj")
+    outside = tmp_path / "elsewhere.ply"
+    trimesh.creation.box(extents=(0.4, 0.5, 0.02)).export(outside)
+    if where == "relative":
+        path = "../elsewhere.ply"
+    elif where == "absolute":
+        path = str(outside)
+    else:
+        (tmp_path / "obj" / "plys" / "link.ply").symlink_to(outside)
+        path = "plys/link.ply"
+    data = json.loads(src.read_text())
+    data["diffuse_tree"][1]["plys"] = [path]
+    src.write_text(json.dumps(data))
+    with pytest.raises(ImportFormatError) as e:
+        import_path(src, tmp_path / "out")
+    assert str(e.value).startswith(
+        f"{src}: diffuse_tree[1].plys: mesh {path!r} lies outside the object folder"
+    )
+    assert not (tmp_path / "out").exists()
+
+
 def test_arti_tree_key_and_own_bundles(tmp_path: Path) -> None:
     src = make_singapo(tmp_path / "obj")
     data = json.loads(src.read_text())

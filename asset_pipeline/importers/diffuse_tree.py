@@ -48,7 +48,9 @@ Conversion to this project's object model (``generator.articulated``):
   fixed (``"fixed"``). A movable joint with an empty range is merged as fixed.
 - Meshes: per node, the first non-empty list among ``objs`` (textured),
   ``glb``/``glbs``, ``plys`` (override with ``mesh_priority``); all meshes of a part
-  (its own and its merged fixed descendants') are concatenated.
+  (its own and its merged fixed descendants') are concatenated. A mesh path must lead
+  to a file inside the object.json's folder (``../x.obj`` or an absolute path elsewhere
+  is refused, as for PartNet-Mobility: :func:`~asset_pipeline.importers.partnet.mesh_in_folder`).
 - Names: parts are named ``<semantic>_<k>`` (``door_0``, ``drawer_1``) in node order;
   the semantic is the node's ``name`` (door, drawer, lid, knob, ...).
 - Category: ``meta.obj_cat`` mapped with :data:`CATEGORY_MAP` (e.g.
@@ -68,6 +70,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from asset_pipeline.importers.partnet import mesh_in_folder
 from asset_pipeline.importers.source_format import CATEGORY_MAP, ImportFormatError, sanitize_id
 from generator.articulated import BASE, ArticulatedObject, Joint, ObjectModelError, Part
 
@@ -204,10 +207,7 @@ def _parse_node(raw: Any, i: int, src: Path, opts: ImportOptions) -> _Node:
         if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
             raise ImportFormatError(f"{src}: {where}.{key}: must be a list of file paths")
         for f in files:
-            p = src.parent / f
-            if not p.is_file():
-                raise ImportFormatError(f"{src}: {where}.{key}: mesh file {p} not found")
-            meshes.append(p)
+            meshes.append(mesh_in_folder(src.parent, f, src, f"{where}.{key}"))
         break
     return _Node(nid, parent, name.strip(), jtype, origin, direction, (lo, hi), meshes, where)
 

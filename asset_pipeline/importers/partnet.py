@@ -350,20 +350,41 @@ class _Urdf:
         return sorted(c for c, j in self.joints.items() if j.parent == link)
 
 
+def mesh_in_folder(
+    folder: Path,
+    name: str,
+    src: Path,
+    where: str,
+    error: type[ImportFormatError] = ImportFormatError,
+    given: str | None = None,
+) -> Path:
+    """The resolved mesh file ``name`` of an object whose files are in ``folder``.
+
+    The rule of every importer: a mesh path (relative to ``folder``, or absolute) must
+    resolve, symlinks followed, to an existing file inside ``folder``; an object never
+    reads files outside its own folder (``../x.obj``, ``/etc/x.obj``). Raises ``error``
+    naming the source file ``src``, the field ``where`` and the path as written
+    (``given``, else ``name``).
+    """
+    shown = name if given is None else given
+    p = (folder / name).resolve() if not os.path.isabs(name) else Path(name).resolve()
+    if not p.is_relative_to(folder.resolve()):
+        raise error(
+            f"{src}: {where}: mesh {shown!r} lies outside the object folder {folder}; "
+            "copy it into that folder and give its path relative to it"
+        )
+    if not p.is_file():
+        raise error(f"{src}: {where}: mesh file {shown} not found")
+    return p
+
+
 def _mesh_path(folder: Path, filename: str, where: str, src: Path) -> Path:
     name = filename.strip()
     if name.startswith("package://"):
         name = name[len("package://") :].split("/", 1)[-1]
     if name.startswith("file://"):
         name = name[len("file://") :]
-    p = (folder / name).resolve() if not os.path.isabs(name) else Path(name).resolve()
-    if not p.is_relative_to(folder.resolve()):
-        raise PartnetFormatError(
-            f"{src}: {where}: mesh {filename!r} lies outside the object folder"
-        )
-    if not p.is_file():
-        raise PartnetFormatError(f"{src}: {where}: mesh file {filename} not found")
-    return p
+    return mesh_in_folder(folder, name, src, where, PartnetFormatError, given=filename)
 
 
 def _geometry(
