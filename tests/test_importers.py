@@ -224,6 +224,72 @@ def test_meshes_outside_the_object_folder_are_refused(tmp_path: Path, where: str
     assert not (tmp_path / "out").exists()
 
 
+def _door_mesh(src: Path, mesh: trimesh.Trimesh) -> Path:
+    """Replace the door's mesh of :func:`make_singapo`'s object (plys/1.ply)."""
+    path = src.parent / "plys" / "1.ply"
+    mesh.export(path)
+    return path
+
+
+#: Three corners of the door's front (source frame), in the order of its quad.
+DOOR = [[-0.49, 0.55, 0.27], [-0.01, 0.55, 0.27], [-0.01, 1.15, 0.27], [-0.49, 1.15, 0.27]]
+
+
+def test_a_part_mesh_with_no_surface_or_bad_numbers_is_refused_naming_it(tmp_path: Path) -> None:
+    src = make_singapo(tmp_path / "obj")
+    line = np.array([DOOR[0], DOOR[2], np.add(DOOR[0], DOOR[2]) / 2])  # collinear corners
+    _door_mesh(src, trimesh.Trimesh(line, [[0, 1, 2]] * 4, process=False))
+    with pytest.raises(ImportFormatError) as e:
+        import_path(src, tmp_path / "out")
+    assert str(e.value).startswith(f"{src}: door_0 (diffuse_tree[1]): mesh plys/1.ply: ")
+    assert "all of its 4 faces have zero area" in str(e.value)
+    (src.parent / "plys" / "1.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n"
+    )
+    with pytest.raises(ImportFormatError, match="1.ply has NaN or infinite vertex coordinates"):
+        import_path(src, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_flat_or_degenerate_part_mesh_is_imported_with_a_warning_naming_it(
+    tmp_path: Path,
+) -> None:
+    clean = import_path(make_singapo(tmp_path / "clean"), tmp_path / "out")
+    assert clean.warnings == []  # boxes, and the fixture's other meshes: no doubt
+    src = make_singapo(tmp_path / "obj")
+    _door_mesh(src, trimesh.Trimesh(DOOR, [[0, 1, 2], [0, 2, 3]], process=False))  # one quad
+    (written,) = result = import_path(src, tmp_path / "out")
+    (warning,) = result.warnings
+    assert warning.startswith(f"{src}: door_0 (diffuse_tree[1]): mesh plys/1.ply: ")
+    assert "only 2 faces of non-zero area" in warning and "flat" in warning
+    assert load_bundle(written).provenance["warnings"] == [warning.split(": ", 1)[1]]
+    assert load_bundle(written).provenance["meshes"]["door_0"] == ["plys/1.ply"]
+    box = trimesh.creation.box(extents=(0.48, 0.6, 0.02))
+    box.apply_translation((-0.25, 0.85, 0.26))
+    slivers = [[i, i, (i + 1) % 8] for i in range(8)] * 3  # zero-area faces
+    _door_mesh(src, trimesh.Trimesh(box.vertices, np.vstack([box.faces, slivers]), process=False))
+    (warning,) = import_path(src, tmp_path / "out", ImportOptions(overwrite=True)).warnings
+    assert "mesh plys/1.ply: 67% of its faces have zero area" in warning
+
+
+def test_a_part_mesh_the_build_cannot_close_is_refused_naming_it(tmp_path: Path, monkeypatch):
+    from generator.mesh_repair import closing
+
+    def cannot(mesh, *args, **kwargs):
+        raise closing.MeshRepairError("voxel remesh did not give a closed volume")
+
+    monkeypatch.setattr(closing, "watertight", cannot)
+    src = make_singapo(tmp_path / "obj")
+    _door_mesh(src, trimesh.Trimesh(DOOR, [[0, 1, 2], [0, 2, 3]], process=False))
+    with pytest.raises(ImportFormatError) as e:
+        import_path(src, tmp_path / "out")
+    assert str(e.value).startswith(f"{src}: door_0 (diffuse_tree[1]): mesh plys/1.ply: ")
+    assert "cannot be closed into a volume (voxel remesh did not" in str(e.value)
+    import_path(make_singapo(tmp_path / "clean"), tmp_path / "out")  # closed meshes: no try
+
+
 def test_arti_tree_key_and_own_bundles(tmp_path: Path) -> None:
     src = make_singapo(tmp_path / "obj")
     data = json.loads(src.read_text())

@@ -732,3 +732,35 @@ def test_flush_door_gets_a_grip_near_its_free_edge(tmp_path: Path) -> None:
     assert np.allclose(pos[1:], [0.29 - 0.05 * grow, 0.40], atol=0.003)
     assert pos[0] - (0.25 + 0.018) == pytest.approx(0.033 * grow, abs=0.002)
     assert "5 cm from the free edge, parallel to the hinge" in " ".join(obj.provenance["warnings"])
+
+
+def _door_as(links: list[LinkSpec], mesh: trimesh.Trimesh) -> list[LinkSpec]:
+    """``links`` of :func:`bar_handle_door` with the door's meshes replaced by ``mesh``."""
+    links[1].meshes = [MeshSpec(mesh, node="door_frame")]
+    return links
+
+
+def test_degenerate_part_meshes_are_refused_or_warned_naming_the_obj(tmp_path: Path) -> None:
+    xf, corners = 0.25, [[0.25, -0.29, 0.02], [0.25, 0.29, 0.02], [0.25, 0.29, 0.78]]
+    line = np.array([[xf, -0.29, 0.02], [xf, 0.29, 0.78], [xf, 0.0, 0.4]])  # collinear
+    folder = write_partnet(
+        tmp_path / "line", _door_as(bar_handle_door(), trimesh.Trimesh(line, [[0, 1, 2]] * 3))
+    )
+    with pytest.raises(PartnetFormatError) as e:
+        convert_object(folder)
+    assert str(e.value).startswith(
+        f"{folder / 'mobility.urdf'}: door_0: mesh textured_objs/original-0.obj: "
+        "all of its 3 faces have zero area"
+    )
+    result = import_objects([folder], tmp_path / "out")
+    assert not result and "original-0.obj" in result.failures[0].message
+    sheet = trimesh.Trimesh(corners + [[0.25, -0.29, 0.78]], [[0, 1, 2], [0, 2, 3]])
+    folder = write_partnet(tmp_path / "flat", _door_as(bar_handle_door(), sheet))
+    result = import_objects([folder], tmp_path / "out")
+    (warning,) = [w for w in result.warnings if "mesh textured_objs" in w]
+    assert warning.startswith(f"{folder}: door_0: mesh textured_objs/original-0.obj: only 2 faces")
+    assert "flat" in warning
+    obj = load_bundle(result[0])
+    assert obj.provenance["meshes"]["door_0"] == ["textured_objs/original-0.obj"]
+    clean = import_objects([write_partnet(tmp_path / "ok", bar_handle_door())], tmp_path / "o2")
+    assert not [w for w in clean.warnings if "mesh textured_objs" in w]

@@ -140,5 +140,6 @@ def import_path(
         obj.provenance["id"] = oid
         save_bundle(obj, dest)
         log.info("imported %s -> %s (%d parts)", src, dest, len(obj.parts))
+        written.warnings.extend(f"{src}: {w}" for w in obj.provenance.get("warnings", []))
         written.append(dest)
     return written

@@ -51,6 +51,12 @@ Conversion to this project's object model (``generator.articulated``):
   (its own and its merged fixed descendants') are concatenated. A mesh path must lead
   to a file inside the object.json's folder (``../x.obj`` or an absolute path elsewhere
   is refused, as for PartNet-Mobility: :func:`~asset_pipeline.importers.partnet.mesh_in_folder`).
+- Degenerate meshes (:func:`~asset_pipeline.importers.partnet.check_part_mesh`, as for
+  PartNet-Mobility): a part whose meshes have non-finite vertices or no face of non-zero
+  area, or that cannot be closed, is refused naming the node and its files; one that is
+  flat, has far too few faces, mostly zero-area faces or is badly non-manifold is
+  imported with a warning naming them (``provenance["warnings"]``, logged, and in
+  :func:`~asset_pipeline.importers.import_path`'s result).
 - Names: parts are named ``<semantic>_<k>`` (``door_0``, ``drawer_1``) in node order;
   the semantic is the node's ``name`` (door, drawer, lid, knob, ...).
 - Category: ``meta.obj_cat`` mapped with :data:`CATEGORY_MAP` (e.g.
@@ -70,7 +76,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from asset_pipeline.importers.partnet import mesh_in_folder
+from asset_pipeline.importers.partnet import check_part_mesh, mesh_in_folder
 from asset_pipeline.importers.source_format import CATEGORY_MAP, ImportFormatError, sanitize_id
 from generator.articulated import BASE, ArticulatedObject, Joint, ObjectModelError, Part
 
@@ -219,6 +225,11 @@ def _load_mesh(path: Path, src: Path, where: str) -> trimesh.Trimesh:
         raise ImportFormatError(f"{src}: {where}: cannot read mesh {path}: {e}") from e
     if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
         raise ImportFormatError(f"{src}: {where}: mesh {path} holds no triangles")
+    if not np.isfinite(m.vertices).all():
+        raise ImportFormatError(
+            f"{src}: {where}: mesh {path} has NaN or infinite vertex coordinates; repair or "
+            "replace that mesh"
+        )
     return m
 
 
@@ -326,10 +337,12 @@ def convert_tree(src: str | Path, options: ImportOptions | None = None) -> Artic
 
     order = sorted(nodes)  # stable node order
     groups: dict[int, list[trimesh.Trimesh]] = {}
+    sources: dict[int, list[Path]] = {}  # the mesh files of each part
     for nid in order:
         n = nodes[nid]
         meshes = [_load_mesh(p, src, n.where) for p in n.meshes]
         groups.setdefault(owner(nid), []).extend(meshes)
+        sources.setdefault(owner(nid), []).extend(n.meshes)
         if kind[nid] != "fixed" and nid != root:
             anc = nodes[nid].parent
             assert anc is not None
@@ -355,11 +368,26 @@ def convert_tree(src: str | Path, options: ImportOptions | None = None) -> Artic
                 f"{src}: {n.where} ({n.name}): no mesh (none of {list(opts.mesh_priority)} lists a file)"
             )
 
+    names, semantics = {root: BASE}, {root: "base"}
+    counters: dict[str, int] = {}
+    for nid in movable_ids:
+        semantic = sanitize_id(nodes[nid].name.lower()).replace(".", "_").replace("-", "_")
+        semantics[nid] = semantic or "part"
+        k = counters.get(semantics[nid], 0)
+        counters[semantics[nid]] = k + 1
+        names[nid] = f"{semantics[nid]}_{k}"
+
     part_meshes: dict[int, trimesh.Trimesh] = {}
+    warnings: list[str] = []
     for nid in [root, *movable_ids]:
         m = _concatenate(groups[nid]).copy()
+        part = f"{names[nid]} ({nodes[nid].where})"
+        files = [p.relative_to(src.parent.resolve()).as_posix() for p in sources[nid]]
+        warnings += check_part_mesh(m.vertices, m.faces, part, files, src)
         m.apply_transform(T)
         part_meshes[nid] = m
+    for w in warnings:
+        log.warning("%s: %s", src, w)
 
     # Normalize into the unit cube of our axes (rest pose).
     allv = np.concatenate([m.vertices for m in part_meshes.values()])
@@ -377,7 +405,6 @@ def convert_tree(src: str | Path, options: ImportOptions | None = None) -> Artic
     parts = [
         Part(name=BASE, semantic="base", mesh=part_meshes[root], joint=None, material=opts.material)
     ]
-    counters: dict[str, int] = {}
     for nid in movable_ids:
         n = nodes[nid]
         t = kind[nid]
@@ -393,13 +420,10 @@ def convert_tree(src: str | Path, options: ImportOptions | None = None) -> Artic
                 lower, upper = math.radians(lower), math.radians(upper)
             else:
                 lower, upper = lower / s, upper / s
-        semantic = sanitize_id(n.name.lower()).replace(".", "_").replace("-", "_") or "part"
-        k = counters.get(semantic, 0)
-        counters[semantic] = k + 1
         parts.append(
             Part(
-                name=f"{semantic}_{k}",
-                semantic=semantic,
+                name=names[nid],
+                semantic=semantics[nid],
                 mesh=part_meshes[nid],
                 joint=Joint(
                     type=t,
@@ -430,6 +454,11 @@ def convert_tree(src: str | Path, options: ImportOptions | None = None) -> Artic
             "source_category": raw_cat or None,
             "source_up": opts.up,
             "normalization": [*map(float, centre), s],
+            "meshes": {
+                names[nid]: [p.relative_to(src.parent.resolve()).as_posix() for p in sources[nid]]
+                for nid in [root, *movable_ids]
+            },
+            "warnings": warnings,
         },
     )
     try:

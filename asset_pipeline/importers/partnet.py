@@ -165,9 +165,15 @@ exactly as ``pact build --height`` would make it. ``provenance["normalization"] 
 [cx, cy, cz, s]`` maps back: ``x_rotated = x * s + c`` where ``x_rotated =
 R @ x_urdf`` (``R`` = ``provenance["frame"]["rotation"]``).
 
+Degenerate meshes. Each part's meshes together are checked before anything is
+written (:func:`check_part_mesh`, shared with the ``diffuse_tree`` importer): refused
+naming the part and its mesh files when they have non-finite vertices, no face of
+non-zero area, or doubts and cannot be closed; imported with a warning naming them
+when flat, with far too few faces, mostly zero-area faces or badly non-manifold.
+
 Provenance also records the source folder, the PartNet id, ``model_cat``, the
-URDF links merged into each part, each part's closed value in source units, each
-part's handle source and the warnings.
+URDF links merged into each part and its mesh files (``meshes``), each part's closed
+value in source units, each part's handle source and the warnings.
 """
 
 from __future__ import annotations
@@ -626,6 +632,7 @@ class _Piece:
     link: str = ""
     stem: str = ""
     visual_name: str = ""
+    source: str = ""  # the mesh file (relative to the object folder) or the URDF primitive
 
     def copy(self) -> _Piece:
         return _Piece(
@@ -637,6 +644,7 @@ class _Piece:
             self.link,
             self.stem,
             self.visual_name,
+            self.source,
         )
 
     def transform(self, T: np.ndarray) -> None:
@@ -711,6 +719,106 @@ def _load_file(
                 key, uv = None, None
         out.append(_Piece(v, np.asarray(g.faces, dtype=np.int64), uv, key, _flat_color(g)))
     return out
+
+
+# --------------------------------------------------------------------------- degenerate part meshes
+
+#: A face has zero area when its area is below this x its longest edge squared (its
+#: corners on a line, up to float32 rounding) or its longest edge is below this x the
+#: mesh's size (its corners at one point). Small faces of a dense mesh are not zero.
+ZERO_AREA = 1e-6
+#: Fewer faces of non-zero area cannot enclose a volume (a tetrahedron has four).
+MIN_PART_FACES = 4
+#: A part is flat (no volume) when its thinnest extent is below this x its largest.
+FLAT_SHARE = 1e-6
+#: A part is noted when more than this share of its faces have zero area ...
+ZERO_FACE_SHARE = 0.5
+#: ... or more than this share of its edges (coincident vertices merged, a face and its
+#: reverse counted once) are shared by three faces or more (non-manifold fins, fans).
+NONMANIFOLD_SHARE = 0.25
+
+
+def part_mesh_problems(vertices: np.ndarray, faces: np.ndarray) -> tuple[str | None, list[str]]:
+    """``(refusal, doubts)`` about one part's mesh (its source meshes together).
+
+    Refused (nothing sensible can be built): non-finite vertex coordinates; no face of
+    non-zero area (a point or a line); a mesh with doubts that the build's closing
+    (:func:`generator.mesh_repair.closing.watertight`) cannot make a closed volume.
+    Doubts (it builds, possibly into a wrong shape or collisions): fewer than
+    :data:`MIN_PART_FACES` faces of non-zero area, flat (:data:`FLAT_SHARE`), mostly
+    zero-area faces (:data:`ZERO_FACE_SHARE`), badly non-manifold
+    (:data:`NONMANIFOLD_SHARE`). Every measure is relative to the mesh's size, so any
+    unit works; artists' open shells and double-sided faces within a part raise no doubt.
+    """
+    from generator.mesh_repair.closing import MeshRepairError, watertight
+
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        return "holds no triangles", []
+    if not np.isfinite(v[f]).all():
+        return "has NaN or infinite vertex coordinates", []
+    tri = v[f]
+    size = float(np.ptp(tri.reshape(-1, 3), axis=0).max())
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    good = (area > ZERO_AREA * longest**2) & (longest > ZERO_AREA * size)
+    if not good.any():
+        return (
+            f"all of its {len(f)} faces have zero area (the mesh is a point or a line): "
+            "there is no surface to build"
+        ), []
+    doubts = []
+    if good.sum() < MIN_PART_FACES:
+        doubts.append(
+            f"only {int(good.sum())} faces of non-zero area, far too few to enclose a volume"
+        )
+    extents = np.ptp(v[f[good]].reshape(-1, 3), axis=0)
+    if extents.min() <= FLAT_SHARE * extents.max():
+        doubts.append("flat (no thickness, no volume): the build closes it as a thin slab")
+    if 1.0 - good.mean() > ZERO_FACE_SHARE:
+        doubts.append(f"{1.0 - good.mean():.0%} of its faces have zero area")
+    mesh = trimesh.Trimesh(vertices=v, faces=f[good], process=False)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    mesh.update_faces(mesh.unique_faces())
+    _, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    fins = float((counts > 2).mean()) if len(counts) else 0.0
+    if fins > NONMANIFOLD_SHARE:
+        doubts.append(f"badly non-manifold: {fins:.0%} of its edges are shared by 3 faces or more")
+    if doubts:
+        try:
+            watertight(mesh)
+        except MeshRepairError as e:
+            return f"cannot be closed into a volume ({e}): " + "; ".join(doubts), []
+    return None, doubts
+
+
+def check_part_mesh(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    part: str,
+    files: Sequence[str],
+    src: Path,
+    error: type[ImportFormatError] = ImportFormatError,
+) -> list[str]:
+    """Refuse a part mesh that cannot be built, or return warnings about one that can.
+
+    :func:`part_mesh_problems` of the part ``part`` made of the mesh ``files``: raises
+    ``error`` naming ``src`` (the object's description file), the part and the files;
+    returns the doubts as one warning naming the part and the files (none when there is
+    no doubt), which an importer logs and records in the bundle's and the import
+    result's warnings.
+    """
+    refusal, doubts = part_mesh_problems(vertices, faces)
+    named = f"{part}: mesh {', '.join(files) or '(no file)'}"
+    if refusal is not None:
+        raise error(f"{src}: {named}: {refusal}; repair or replace that mesh")
+    if not doubts:
+        return []
+    return [
+        f"{named}: {'; '.join(doubts)}; if the asset fails validation on {part.split()[0]} "
+        "(penetration, an odd shape), this mesh is the likely cause"
+    ]
 
 
 # --------------------------------------------------------------------------- textures
@@ -1078,6 +1186,11 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
                 q.transform(T)
                 q.link, q.visual_name = n, v.name
                 q.stem = v.file.stem if v.file is not None else f"{n}-{v.index}"
+                q.source = (
+                    f"{URDF_NAME} {where} (a primitive)"
+                    if v.file is None
+                    else v.file.relative_to(folder.resolve()).as_posix()
+                )
                 pieces.append(q)
         link_pieces[n] = pieces
     if not any(link_pieces.values()):
@@ -1226,7 +1339,14 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
 
     # ---- parts
     atlas_info: dict[str, Any] = {}
+
+    def check_pieces(part: str, pieces: list[_Piece]) -> None:
+        v, f = _geometry_concat(pieces)
+        files = sorted({p.source for p in pieces})
+        warnings.extend(check_part_mesh(v, f, part, files, src, PartnetFormatError))
+
     base_pieces = [p for ln in groups[urdf.root] for p in link_pieces.get(ln, [])]
+    check_pieces(BASE, base_pieces)
     base_mesh, atlas_info[BASE] = _merge_visual(
         base_pieces, images, opts.atlas_size, opts.jpeg_quality
     )
@@ -1238,6 +1358,7 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
         order.append((-round(float(c[2]), 3), round(float(c[1]), 3), n))
     counters: dict[str, int] = {}
     merged_links = {BASE: sorted(groups[urdf.root])}
+    part_files = {BASE: sorted({p.source for p in base_pieces})}
     closed_values = {}
     handles: dict[str, dict[str, Any] | None] = {}
     for _z, _y, n in sorted(order):
@@ -1245,6 +1366,7 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
         name = f"{k.word}_{counters.get(k.word, 0)}"
         counters[k.word] = counters.get(k.word, 0) + 1
         pieces = [p for ln in groups[n] for p in link_pieces.get(ln, [])]
+        check_pieces(name, pieces)
         origin = (k.origin - centre) / s
         if k.jtype == "revolute":
             upper = k.travel
@@ -1299,6 +1421,7 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
             )
         )
         merged_links[name] = sorted(groups[n])
+        part_files[name] = sorted({p.source for p in pieces if p.stem != GRIP_STEM})
         closed_values[name] = k.closed
 
     if not kept:
@@ -1330,6 +1453,7 @@ def convert_object(folder: str | Path, options: PartnetOptions | None = None) ->
             },
             "normalization": [*map(float, centre), s],
             "links": merged_links,
+            "meshes": part_files,
             "closed_value": closed_values,
             "restored_joints": sorted(n for n, k in kept.items() if k.restored),
             "handles": handles,
