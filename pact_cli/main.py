@@ -777,18 +777,22 @@ def train_gen(
     steps: int = typer.Option(None, help="Optimiser steps (stage 1: the schedule's length)."),
     threads: int = typer.Option(None, help="torch threads (1 on a shared 2-core machine)."),
     write_shipped_weights: bool = typer.Option(
-        False, help="Allow --out inside generator/pact/weights/ (overwrites the shipped model)."
+        False,
+        help="Allow --out or --cache inside generator/pact/weights/ (overwrites the shipped "
+        "model).",
     ),
 ) -> None:
     """Train the PAct generator: stage 1 (sparse-structure VAE, then the part-aware flow) or
     stage 2 (structured-latent VAE, then the stage-2 flow with the articulation head).
 
-    Never writes into generator/pact/weights/ unless --write-shipped-weights is given.
+    Never writes into generator/pact/weights/ (any folder it writes: --out, the stage-2
+    --cache) unless --write-shipped-weights is given.
     Stage 1 runs data-parallel under torchrun (one process per GPU or node); see docs/pact.md.
     """
     from generator.pact.model.checkpoint import check_output_dir
 
     if stage == 2:
+        from generator.pact.training.train_stage2 import check_written_folders, parse_args
         from generator.pact.training.train_stage2 import main as train_stage2
 
         argv = [what, "--data", str(data), "--cache", str(cache)]
@@ -804,6 +808,10 @@ def train_gen(
             argv += ["--threads", str(threads)]
         if write_shipped_weights:
             argv.append("--write-shipped-weights")
+        try:
+            check_written_folders(parse_args(argv))
+        except ValueError as e:
+            raise fail(e) from e
         train_stage2(argv)
         return
     from generator.pact.training.train_stage1 import train_stage1

@@ -514,6 +514,38 @@ def test_train_gen_passes_its_options_and_guards_the_shipped_weights(tmp_path, m
     assert sorted((p, p.stat().st_mtime) for p in shipped.rglob("*")) == before
 
 
+@pytest.mark.parametrize(
+    "what, option", [("cache", "--cache"), ("flow", "--cache"), ("vae", "--logdir")]
+)
+def test_train_gen_never_writes_the_shipped_weights_through_any_folder(
+    tmp_path, monkeypatch, what, option
+):
+    """Not only --out: the stage-2 token cache and the logs are written too."""
+    import generator.pact.training.train_stage2 as stage2
+
+    ran = []
+    monkeypatch.setattr(stage2, "build_cache", lambda data, cache: ran.append(cache))
+    for step in ("train_vae", "train_flow"):
+        monkeypatch.setattr(stage2, step, lambda args: ran.append(args))
+    shipped = Path(stage2.__file__).parents[1] / "weights" / "small"
+    before = sorted((p, p.stat().st_mtime) for p in shipped.rglob("*"))
+    folders = {"--cache": str(tmp_path / "cache"), "--logdir": str(tmp_path / "logs")}
+    folders[option] = str(shipped / "cache")
+    argv = [what, "--data", "D", "--out", str(tmp_path / "w"), *sum(folders.items(), ())]
+    with pytest.raises(SystemExit, match=f"error: {option} .*shipped weights"):
+        stage2.main(argv)
+    if option == "--cache":
+        cli = ["train-gen", "--stage", "2", "--what", what, "--data", "D"]
+        res = runner.invoke(app, [*cli, "--out", str(tmp_path / "w"), "--cache", folders[option]])
+        assert res.exit_code == 2 and "error: --cache" in res.output, res.output
+        assert "shipped weights" in res.output
+    assert ran == []
+    assert sorted((p, p.stat().st_mtime) for p in shipped.rglob("*")) == before
+    folders[option] = str(tmp_path / "elsewhere")  # anywhere else is fine
+    stage2.main([what, "--data", "D", "--out", str(tmp_path / "w"), *sum(folders.items(), ())])
+    assert len(ran) == 1
+
+
 def test_the_flock_is_released_when_a_run_dies(tmp_path):
     """The lock is an flock: the kernel drops it with the process, so a killed run never
     leaves a stale lock behind."""

@@ -15,7 +15,8 @@ Checkpoints go to ``--out`` (default runs/pact/stage2/weights/{slat_vae,stage2,s
 in float16; logs (text + TensorBoard) to ``--logdir``. The models a step builds on (the
 SLAT VAE for ``flow``, stage 1 for ``head-stage1``) are read from ``--out`` when it holds
 them, else from ``--base`` (default: the shipped weights). Writing into the shipped
-weights folder (generator/pact/weights/) needs ``--write-shipped-weights``.
+weights folder (generator/pact/weights/), with any of ``--out``, ``--cache`` or
+``--logdir``, needs ``--write-shipped-weights`` (:func:`check_written_folders`).
 """
 
 from __future__ import annotations
@@ -462,8 +463,33 @@ def train_stage1_head(args: argparse.Namespace) -> None:
 # --------------------------------------------------------------------------- entry
 
 
-def main(argv: list[str] | None = None) -> None:
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+def written_folders(args: argparse.Namespace) -> dict[str, str]:
+    """The folders the step ``args.what`` writes into, by option: ``--cache`` (``cache``
+    builds it, ``flow`` adds its latents), ``--out`` (checkpoints of ``vae``, ``flow``,
+    ``head-stage1``) and ``--logdir`` (logs of ``vae`` and ``flow``)."""
+    folders = {}
+    if args.what in ("cache", "flow"):
+        folders["--cache"] = args.cache
+    if args.what in ("vae", "flow", "head-stage1"):
+        folders["--out"] = args.out
+    if args.what in ("vae", "flow"):
+        folders["--logdir"] = args.logdir
+    return folders
+
+
+def check_written_folders(args: argparse.Namespace) -> None:
+    """Raise ValueError naming the option when a folder the step writes into
+    (:func:`written_folders`) lies in the shipped weights and ``--write-shipped-weights``
+    was not given (:func:`~generator.pact.model.checkpoint.check_output_dir`)."""
+    for option, folder in written_folders(args).items():
+        try:
+            check_output_dir(folder, args.write_shipped_weights)
+        except ValueError as e:
+            raise ValueError(f"{option} {e}") from e
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The options of :func:`main`."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("what", choices=["cache", "vae", "flow", "eval-vae", "head-stage1"])
     ap.add_argument("--data", default="runs/data/train")
@@ -474,7 +500,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--write-shipped-weights",
         action="store_true",
-        help="allow --out inside generator/pact/weights/",
+        help="allow --out, --cache and --logdir inside generator/pact/weights/",
     )
     ap.add_argument("--logdir", default="runs/pact/stage2")
     ap.add_argument("--minutes", type=float, default=20.0)
@@ -487,12 +513,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--resume", action="store_true")
     ap.add_argument("--threads", type=int, default=0)
-    args = ap.parse_args(argv)
-    if args.what != "cache":
-        try:
-            check_output_dir(args.out, args.write_shipped_weights)
-        except ValueError as e:
-            raise SystemExit(f"error: {e}") from e
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> None:
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    args = parse_args(argv)
+    try:
+        check_written_folders(args)
+    except ValueError as e:
+        raise SystemExit(f"error: {e}") from e
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.what == "cache":
