@@ -24,7 +24,13 @@ from asset_pipeline.inputs.folder import (
     load_input,
 )
 from asset_pipeline.inputs.hints import check_hints
-from asset_pipeline.inputs.mask import MASK_MIN_IOU, check_mask_matches_photo
+from asset_pipeline.inputs.mask import (
+    MASK_EDGE_REFUSE,
+    MASK_MIN_IOU,
+    check_mask_edges,
+    check_mask_matches_photo,
+    mask_edge_support,
+)
 from asset_pipeline.inputs.photo import MIN_PHOTO_SIZE
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
@@ -326,6 +332,52 @@ def test_mismatch_not_judged_without_a_silhouette(tmp_path: Path) -> None:
         Image.fromarray(img).save(tmp_path / f"{name}.png")
         _mask(tmp_path / f"{name}{MASK_SUFFIX}", m)
     assert [load_input(i).part_count for i in discover_inputs(tmp_path)] == [1, 1]
+
+
+def _dark_appliance() -> tuple[np.ndarray, np.ndarray]:
+    """(photo, its own mask): a microwave, a dark body on a light plain background with
+    a panel of bright buttons, whose dark glass door (id 2) shows no edge against its
+    frame: the door's outline is no edge at all, the body's outline is one."""
+    img = np.full((96, 128, 3), 235, np.uint8)
+    img[16:80, 16:112] = 25  # the body and the door: the same dark
+    for row in range(28, 72, 10):  # the control panel's buttons
+        img[row : row + 5, 94:104] = 220
+    mask = np.zeros((96, 128), np.uint8)
+    mask[16:80, 16:112] = 1
+    mask[24:72, 24:84] = 2
+    return img, mask
+
+
+def test_a_dark_door_in_a_dark_frame_with_its_own_mask_is_accepted(tmp_path: Path) -> None:
+    img, mask = _dark_appliance()
+    assert mask_edge_support(mask, img) < MASK_EDGE_REFUSE  # no edge round the door
+    Image.fromarray(img).save(tmp_path / "mw.png")
+    _mask(tmp_path / "mw.mask.png", mask)
+    loaded = load_input(discover_inputs(tmp_path)[0])
+    assert loaded.part_count == 2
+    (warning,) = loaded.warnings  # a doubt, named, but no refusal
+    assert warning.startswith(f"{tmp_path / 'mw.mask.png'}: the boundaries between")
+
+
+def test_a_mask_whose_outline_and_parts_miss_the_photos_edges_is_refused(tmp_path: Path) -> None:
+    """Another object's mask: its outline and its part boundary run over flat bands of a
+    textured object, where the photo has no edges (its silhouette still overlaps)."""
+    rng = np.random.default_rng(4)
+    img = np.full((96, 128, 3), 235, np.uint8)
+    img[8:88, 8:120] = rng.integers(0, 256, (80, 112, 3))  # a busy, textured object
+    for flat in (np.s_[14:26, 14:114], np.s_[70:82, 14:114], np.s_[14:82, 14:26],
+                 np.s_[14:82, 102:114], np.s_[14:82, 58:70]):  # fmt: skip
+        img[flat] = 128
+    other = np.zeros((96, 128), np.uint8)
+    other[20:76, 20:108] = 1  # the outline on the flat ring
+    other[20:76, 64:108] = 2  # the boundary between the parts on the flat band
+    assert check_mask_edges(_dark_appliance()[1], _dark_appliance()[0], "own") != []
+    with pytest.raises(InputError, match="it looks like the mask of another photo"):
+        check_mask_edges(other, img, "other.mask.png")
+    Image.fromarray(img).save(tmp_path / "p.png")
+    _mask(tmp_path / "p.mask.png", other)
+    err = _expect(tmp_path, "neither the mask's outline nor the boundaries", "p.mask.png")
+    assert "outline support" in str(err) and "part-boundary support" in str(err)
 
 
 def test_mask_check_is_cheap_at_1024px() -> None:

@@ -31,13 +31,7 @@ import numpy as np
 from asset_pipeline.inputs.asset_ids import ID_PATTERN, asset_id_for, is_reserved_id
 from asset_pipeline.inputs.errors import InputError
 from asset_pipeline.inputs.hints import read_hints
-from asset_pipeline.inputs.mask import (
-    MASK_EDGE_REFUSE,
-    MASK_EDGE_WARN,
-    check_mask_matches_photo,
-    mask_edge_support,
-    read_mask,
-)
+from asset_pipeline.inputs.mask import check_mask_edges, check_mask_matches_photo, read_mask
 from asset_pipeline.inputs.photo import read_image
 
 log = logging.getLogger(__name__)
@@ -368,7 +362,8 @@ def load_input(item: InputItem) -> LoadedInput:
     """Decode and check one item (image, mask, hints); raise InputError on any fault.
 
     Beyond the checks of :func:`read_image`, :func:`read_mask` and
-    :func:`read_hints`, the mask must match the photo (:func:`check_mask_matches_photo`).
+    :func:`read_hints`, the mask must match the photo (:func:`check_mask_matches_photo`,
+    :func:`check_mask_edges`: refused on strong evidence, else a warning).
     """
     image, alpha = read_image(item.image_path)
     h, w = image.shape[:2]
@@ -377,16 +372,7 @@ def load_input(item: InputItem) -> LoadedInput:
     warnings: list[str] = []
     if mask is not None:
         check_mask_matches_photo(mask, image, alpha, str(item.mask_path))
-        support = mask_edge_support(mask, image)
-        if support is not None and support < MASK_EDGE_WARN:
-            message = (
-                f"{item.mask_path}: the boundaries between the mask's parts do not follow edges "
-                f"in the photo (edge support {support:.2f}, a photo's own mask scores above "
-                f"{MASK_EDGE_WARN}); is it the mask of another photo?"
-            )
-            if support < MASK_EDGE_REFUSE:
-                raise InputError(message + " Use the photo's own mask or delete it")
-            warnings.append(message)
+        warnings += check_mask_edges(mask, image, str(item.mask_path))
         if alpha is not None:
             outside = int(np.count_nonzero((mask > 0) & (alpha == 0)))
             if outside > 0.01 * mask.size:
