@@ -16,6 +16,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 from PIL import Image
 from typer.testing import CliRunner
@@ -355,6 +356,19 @@ def test_another_photos_mask_is_refused_or_flagged(tmp_path):
     with Catalog(tmp_path / "out2", readonly=True) as cat:
         (row,) = cat.query()
     assert any("microwave_t0000001.mask.png" in w and "another photo" in w for w in row.warnings)
+
+
+def test_a_mask_with_a_hidden_part_converts_and_the_catalog_keeps_the_warning(tmp_path):
+    images = _photos(tmp_path / "in", ["microwave_t0000001"])
+    mask = images / "microwave_t0000001.mask.png"
+    ids = np.asarray(Image.open(mask)).copy()
+    ids[ids == 2] = 3  # the door numbered as if a part before it were hidden
+    Image.fromarray(ids).save(mask)
+    (result,) = run_convert(images, tmp_path / "out", FAST).results
+    assert result.status == "ok"
+    with Catalog(tmp_path / "out", readonly=True) as cat:
+        (row,) = cat.query()
+    assert any(str(mask) in w and "renumbered 3 -> 2" in w for w in row.warnings)
 
 
 def test_webp_photos_convert_and_skipped_files_are_listed(tmp_path):

@@ -157,9 +157,8 @@ def test_mask_size_mismatch(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "edit, match",
     [
-        (lambda m: m.__setitem__((0, 0), 17), "above 16"),
         (lambda m: m.__setitem__(m == 1, 0), "no base"),
-        (lambda m: m.__setitem__(m == 2, 3), "consecutive"),
+        (lambda m: m.__setitem__(slice(None), 40), "above 16"),  # all of it: not ids
     ],
 )
 def test_mask_ids(tmp_path: Path, edit, match: str) -> None:
@@ -168,6 +167,72 @@ def test_mask_ids(tmp_path: Path, edit, match: str) -> None:
     edit(m)
     _mask(tmp_path / "c.mask.png", m)
     _expect(tmp_path, match, "c.mask.png")
+
+
+def test_part_ids_that_skip_a_number_are_renumbered_with_a_warning(tmp_path: Path) -> None:
+    _rgba(tmp_path / "c.png")
+    m = _good_mask()
+    m[14:20, 22:30] = 4  # parts 1, 2, 4: part 3 is hidden in this view
+    _mask(tmp_path / "c.mask.png", m)
+    loaded = load_input(discover_inputs(tmp_path)[0])
+    assert sorted(np.unique(loaded.mask)) == [0, 1, 2, 3] and loaded.part_count == 3
+    assert (loaded.mask[14:20, 22:30] == 3).all() and (loaded.mask == 2).sum() == (m == 2).sum()
+    (warning,) = loaded.warnings
+    assert warning.startswith(f"{tmp_path / 'c.mask.png'}: mask part ids [1, 2, 4] skip [3]")
+    assert "renumbered 4 -> 3" in warning
+
+
+def _soft_mask() -> tuple[np.ndarray, np.ndarray]:
+    """(ids as an anti-aliasing tool saves them, the exact ids): a cabinet (base 1) with
+    a tilted door (3) and a drawer (2), drawn at 4x and scaled down smoothly, so that its
+    slanted edges carry in-between values."""
+    from PIL import ImageDraw
+
+    big = Image.new("L", (512, 384), 0)
+    draw = ImageDraw.Draw(big)
+    draw.rectangle([64, 64, 448, 320], fill=1)
+    draw.polygon([(96, 96), (240, 112), (228, 296), (84, 280)], fill=3)
+    draw.rectangle([272, 96, 416, 200], fill=2)
+    soft = np.asarray(big.resize((128, 96), Image.BILINEAR))
+    exact = np.asarray(big.resize((128, 96), Image.NEAREST))
+    return soft.copy(), exact
+
+
+def test_soft_edges_specks_and_holes_are_cleaned_with_a_warning(tmp_path: Path) -> None:
+    soft, exact = _soft_mask()
+    assert (soft != exact).sum() > 20  # in-between values along the door's slanted edges
+    soft[60:62, 100:102] = 3  # a speck of the door on the base
+    soft[70:72, 90:92] = 0  # a small hole in the base
+    soft[[17, 40, 77], [20, 110, 50]] = 200  # stray values that are no id
+    img = _on_plain_background(box=(slice(16, 80), slice(16, 112)))
+    Image.fromarray(img).save(tmp_path / "cab.png")
+    _mask(tmp_path / "cab.mask.png", soft)
+    loaded = load_input(discover_inputs(tmp_path)[0])
+    assert loaded.part_count == 3  # no part made of in-between values
+    assert (loaded.mask[60:62, 100:102] == 1).all() and (loaded.mask[70:72, 90:92] == 1).all()
+    assert (loaded.mask[[17, 40, 77], [20, 110, 50]] == 1).all()
+    assert (loaded.mask != exact).sum() < (soft != exact).sum() / 2
+    (warning,) = [w for w in loaded.warnings if "mask cleaned" in w]
+    assert warning.startswith(f"{tmp_path / 'cab.mask.png'}: mask cleaned: 3 px of values above")
+    assert "specks" in warning and "small holes" in warning
+
+
+@pytest.mark.parametrize(
+    "picture, match",
+    [
+        ("photo", "above 16 in 100% of its pixels.*is this a photo"),
+        ("random ids", "this is not a mask of part ids"),
+    ],
+)
+def test_a_picture_saved_as_a_mask_is_still_refused(tmp_path: Path, picture, match) -> None:
+    img = _on_plain_background()
+    Image.fromarray(img).save(tmp_path / "p.png")
+    if picture == "photo":
+        ids = np.asarray(Image.fromarray(img).convert("L"))
+    else:  # a picture of few levels: every pixel its own speck
+        ids = np.random.default_rng(5).integers(0, 4, img.shape[:2]).astype(np.uint8)
+    _mask(tmp_path / "p.mask.png", ids)
+    _expect(tmp_path, match, "p.mask.png")
 
 
 def test_colour_mask_refused(tmp_path: Path) -> None:

@@ -367,9 +367,9 @@ def load_input(item: InputItem) -> LoadedInput:
     """
     image, alpha = read_image(item.image_path)
     h, w = image.shape[:2]
-    mask = None if item.mask_path is None else read_mask(item.mask_path, size=(w, h))
-    hints = {} if item.hints_path is None else read_hints(item.hints_path)
     warnings: list[str] = []
+    mask = None if item.mask_path is None else read_mask(item.mask_path, (w, h), warnings)
+    hints = {} if item.hints_path is None else read_hints(item.hints_path)
     if mask is not None:
         check_mask_matches_photo(mask, image, alpha, str(item.mask_path))
         warnings += check_mask_edges(mask, image, str(item.mask_path))

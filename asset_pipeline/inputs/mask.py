@@ -1,6 +1,7 @@
-"""The part mask of an input item (docs/input-format.md, "Mask"): reading, its rules, and
-whether it belongs to its photo (its foreground against the photo's silhouette, its part
-boundaries against the photo's edges).
+"""The part mask of an input item (docs/input-format.md, "Mask"): reading, cleaning (as
+people and tools make masks: :func:`clean_mask`), its rules, and whether it belongs to
+its photo (its foreground against the photo's silhouette, its part boundaries and
+outline against the photo's edges).
 """
 
 from __future__ import annotations
@@ -34,13 +35,17 @@ MAX_PART_ID = 16
 MASK_MIN_IOU = 0.5
 
 
-def read_mask(path: str | Path, size: tuple[int, int] | None = None) -> np.ndarray:
-    """Decode and check a part mask; returns (H, W) uint8 ids.
+def read_mask(
+    path: str | Path, size: tuple[int, int] | None = None, warnings: list[str] | None = None
+) -> np.ndarray:
+    """Decode, clean and check a part mask; returns (H, W) uint8 ids.
 
     ``size`` is the photo's (width, height); the mask must match it. Accepted
     encodings: 8-bit grey (``L``), palette (``P``: the palette indices are the ids),
     grey with alpha (alpha ignored), and RGB/RGBA whose three colour channels are
-    equal (a grey image saved as colour). See :func:`check_mask` for the id rules.
+    equal (a grey image saved as colour). The ids are cleaned (:func:`clean_mask`:
+    in-between values, specks and small holes, skipped ids renumbered), each change
+    noted in ``warnings`` (naming the file), then checked (:func:`check_mask`).
     """
     path = Path(path)
     img = open_image(path, "mask")
@@ -75,9 +80,184 @@ def read_mask(path: str | Path, size: tuple[int, int] | None = None) -> np.ndarr
         )
     else:
         raise InputError(f"{path}: mask mode {img.mode} is not supported; save an 8-bit grey PNG")
-    ids = np.ascontiguousarray(ids, dtype=np.uint8)
+    ids, notes = clean_mask(np.asarray(ids), str(path))
+    for note in notes:
+        log.info("%s", note)
+    if warnings is not None:
+        warnings.extend(notes)
     check_mask(ids, str(path))
     return ids
+
+
+#: Cleaning (:func:`clean_mask`). A component of an id smaller than this share of the
+#: mask's pixels (at least MIN_SPECK_PIXELS) is a speck ...
+SPECK_SHARE = 0.0005
+MIN_SPECK_PIXELS = 4
+#: A component of at most this many pixels is a speck wherever it lies (the in-between
+#: values of an anti-aliased diagonal edge); a larger speck must be isolated: in one id.
+TINY_PIXELS = 2
+#: ... a region of background enclosed by the object and smaller than this share is a
+#: hole ...
+HOLE_SHARE = 0.001
+#: ... and more than this share of pixels holding values above MAX_PART_ID, or more
+#: than NOISE_SHARE of the object's pixels to reassign, is not a mask to clean but a
+#: picture (a photo, a visualisation) saved as one.
+INVALID_SHARE = 0.02
+NOISE_SHARE = 0.25
+#: Cleaning that changes fewer than this share of the object's pixels (and no value
+#: above MAX_PART_ID) is logged, not a warning of the item.
+NOTE_SHARE = 0.0005
+_FOUR = ndimage.generate_binary_structure(2, 1)
+_SQUARE = np.ones((3, 3), bool)
+
+
+def _isolated(ids: np.ndarray, labels: np.ndarray, count: int) -> np.ndarray:
+    """(count + 1,) bool: whether each labelled component is surrounded by one id only
+    (its 4-neighbours outside it all hold the same other value)."""
+    ring = ndimage.binary_dilation(labels > 0, _FOUR) & (labels == 0)
+    near = ndimage.grey_dilation(labels, footprint=_FOUR)  # a component next to each ring px
+    lo = np.full(count + 1, 1 << 30, np.int64)
+    hi = np.full(count + 1, -1, np.int64)
+    np.minimum.at(lo, near[ring], ids[ring])
+    np.maximum.at(hi, near[ring], ids[ring])
+    return lo == hi
+
+
+def _noise(ids: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
+    """The pixels to reassign (see :func:`clean_mask`) and how many of each kind."""
+    n = ids.size
+    speck = max(MIN_SPECK_PIXELS, int(np.ceil(SPECK_SHARE * n)))
+    hole = max(MIN_SPECK_PIXELS, int(np.ceil(HOLE_SHARE * n)))
+    invalid = ids > MAX_PART_ID
+    noise = invalid.copy()
+    kinds = {"invalid": int(invalid.sum()), "specks": 0, "holes": 0}
+    for k in (int(v) for v in np.unique(ids) if v <= MAX_PART_ID):
+        whole = ids == k
+        if k == 0:  # enclosed background: a hole when small
+            labels, count = ndimage.label(whole, _FOUR)
+            sizes = np.bincount(labels.ravel(), minlength=count + 1)
+            bad = sizes < hole
+            bad[np.unique(np.r_[labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = False
+            bad[0] = False
+            marked = bad[labels]
+            kinds["holes"] += int(marked.sum())
+            noise |= marked
+            continue
+        # the id's pixels and a 1 px ring round them (its neighbours), cut out
+        rows, cols = np.flatnonzero(whole.any(axis=1)), np.flatnonzero(whole.any(axis=0))
+        box = np.s_[max(rows[0] - 1, 0) : rows[-1] + 2, max(cols[0] - 1, 0) : cols[-1] + 2]
+        region = whole[box]
+        labels, count = ndimage.label(region, _FOUR)
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        bad = np.zeros(count + 1, bool)
+        core = ndimage.binary_erosion(region, _SQUARE, iterations=2)
+        if k != 1 and np.count_nonzero(core) < speck:
+            bad[1:] = True  # specks and lines along edges only: no part at all
+        else:
+            bad[1:] = sizes[1:] <= TINY_PIXELS
+            if k != 1:  # a line of a movable part's id along other edges: in-between values
+                thick = np.bincount(
+                    labels[ndimage.binary_erosion(region, _SQUARE)], minlength=count + 1
+                )
+                bad[1:] |= thick[1:] == 0
+            doubtful = (sizes > TINY_PIXELS) & (sizes < speck) & ~bad
+            doubtful[0] = False
+            if doubtful.any():
+                bad |= doubtful & _isolated(ids[box], labels, count)
+            bad[1 + int(np.argmax(sizes[1:]))] = False  # the part itself stays
+        marked = bad[labels]
+        kinds["specks"] += int(marked.sum())
+        noise[box] |= marked
+    return noise, kinds
+
+
+def _reassign(ids: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """``ids`` with each ``noise`` pixel given the most frequent id among the other
+    pixels of its 5x5 neighbourhood (the nearest such pixel's id when it has none)."""
+    out = ids.copy()
+    rows, cols = np.nonzero(noise)
+    box = np.s_[max(rows.min() - 3, 0) : rows.max() + 4, max(cols.min() - 3, 0) : cols.max() + 4]
+    sub, hit = ids[box], noise[box]
+    best = np.full(sub.shape, -1, np.int16)
+    votes = np.zeros(sub.shape, np.float32)
+    for k in np.unique(sub[~hit]):
+        count = ndimage.uniform_filter(((sub == k) & ~hit).astype(np.float32), size=5)
+        better = hit & (count > votes + 1e-6)
+        best[better], votes[better] = k, count[better]
+    left = hit & (best < 0)
+    if left.any():
+        _, (iy, ix) = ndimage.distance_transform_edt(noise, return_indices=True)
+        full = ids[iy, ix][box]
+        best[left] = full[left]
+    out[box] = np.where(hit, best, sub)
+    return out
+
+
+def clean_mask(raw: np.ndarray, source: str = "<mask>") -> tuple[np.ndarray, list[str]]:
+    """Clean a mask as people and tools make them; returns (uint8 ids, notes).
+
+    Reassigned to the id most frequent around them (:func:`_reassign`): values above
+    MAX_PART_ID, specks (a component of an id, 4-connected, smaller than
+    :data:`SPECK_SHARE` of the pixels, or nowhere 3 px thick, as the in-between values
+    of anti-aliased edges are; never an id's largest component, unless the whole id is
+    that small or that thin and is not the base) and holes (background enclosed by the
+    object, smaller than :data:`HOLE_SHARE`). Then ids that skip a number (a movable
+    part hidden in this view) are renumbered consecutively, base first. Each change is
+    a note naming ``source``. Raises InputError when the values above MAX_PART_ID are
+    more than :data:`INVALID_SHARE` of the pixels or the reassigned pixels more than
+    :data:`NOISE_SHARE` of the object's: a photo or a picture, not a mask.
+    """
+    ids = np.asarray(raw)
+    notes = []
+    present = np.unique(ids)
+    too_big = present[present > MAX_PART_ID]
+    n_big = int(np.count_nonzero(ids > MAX_PART_ID)) if too_big.size else 0
+    if n_big > INVALID_SHARE * ids.size:
+        raise InputError(
+            f"{source}: mask holds part ids {too_big.tolist()[:8]} above {MAX_PART_ID} in "
+            f"{n_big / ids.size:.0%} of its pixels (at most {MAX_PART_ID} parts: 0 background, "
+            f"1 base, 2..{MAX_PART_ID} movable parts); is this a photo, a colour image or a mask "
+            "saved with other values? Save a single-channel image of part ids"
+        )
+    noise, kinds = _noise(ids)
+    n_noise = int(noise.sum())
+    if n_noise:
+        obj = max(int(np.count_nonzero((ids > 0) | noise)), 1)
+        if n_noise > NOISE_SHARE * obj:
+            raise InputError(
+                f"{source}: this is not a mask of part ids: {n_noise / obj:.0%} of its object's "
+                "pixels are specks, lines one or two pixels thin or values above "
+                f"{MAX_PART_ID} (a photo or a picture saved as a mask?); save a single-channel "
+                "image of part ids (0 background, 1 base, 2.. movable parts)"
+            )
+        ids = _reassign(ids, noise)
+        what = {
+            "invalid": f"values above {MAX_PART_ID}",
+            "specks": "specks and thin in-between edges",
+            "holes": "small holes",
+        }
+        done = ", ".join(f"{v} px of {what[k]}" for k, v in kinds.items() if v)
+        note = (
+            f"{source}: mask cleaned: {done} ({n_noise / obj:.1%} of the object) given the "
+            "part id around them"
+        )
+        if kinds["invalid"] or n_noise >= NOTE_SHARE * obj:
+            notes.append(note)
+        else:  # a pixel or two of an exact mask's slivers: not worth a warning
+            log.debug("%s", note)
+    ids = np.ascontiguousarray(ids, dtype=np.uint8)
+    fg = [int(v) for v in np.unique(ids) if v > 0]
+    if fg and 1 in fg and fg != list(range(1, len(fg) + 1)):
+        lut = np.zeros(256, np.uint8)
+        lut[fg] = np.arange(1, len(fg) + 1)
+        ids = lut[ids]
+        mapping = ", ".join(f"{old} -> {lut[old]}" for old in fg if lut[old] != old)
+        missing = sorted(set(range(1, max(fg) + 1)) - set(fg))
+        notes.append(
+            f"{source}: mask part ids {fg} skip {missing} (a movable part hidden in this view?); "
+            f"renumbered {mapping}"
+        )
+    return ids, notes
 
 
 def check_mask(ids: np.ndarray, source: str = "<mask>") -> None:
@@ -86,6 +266,8 @@ def check_mask(ids: np.ndarray, source: str = "<mask>") -> None:
     Rules: every id is within 0..MAX_PART_ID; some pixel has an id above 0 (the mask
     is not empty); the base (id 1) is present; the ids present above 0 are
     consecutive (1..K, no gaps), so the mask shows K parts in object order.
+    :func:`read_mask` checks ids after :func:`clean_mask`, so of these only an empty
+    mask and a missing base refuse a mask file.
     """
     present = np.unique(ids)
     too_big = present[present > MAX_PART_ID]
