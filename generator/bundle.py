@@ -8,6 +8,7 @@ float32-representable).
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -129,6 +130,14 @@ def load_bundle(directory: str | Path) -> ArticulatedObject:
     )
     obj.validate(str(src))
     return obj
+
+
+def remove_bundle(directory: str | Path) -> None:
+    """Remove the bundle files of ``directory`` (``object.json`` first, then ``parts/``),
+    leaving whatever else the folder holds (a built asset)."""
+    directory = Path(directory)
+    (directory / "object.json").unlink(missing_ok=True)
+    shutil.rmtree(directory / "parts", ignore_errors=True)
 
 
 def is_bundle(directory: str | Path) -> bool:

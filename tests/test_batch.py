@@ -63,10 +63,29 @@ def test_bad_items_are_recorded_and_the_rest_convert(tmp_path):
         assert row.status == "failed" and "badmask.mask.png" in row.failure_reason
     assert not (out / "corrupt").exists()
     assert not (out / ".staging").exists()
-    # Every converted asset is complete.
+    # Every converted asset is complete, and holds the asset alone: one visual GLB per link
+    # (with the OBJ and texture MJCF reads), no generator bundle, no texture folder.
     for name in ("microwave_t0000001", "oven_t0000001"):
-        for f in ("asset.json", "model.urdf", "model.xml", "object.json", "input.png"):
+        for f in ("asset.json", "model.urdf", "model.xml", "input.png"):
             assert (out / name / f).is_file()
+        assert not (out / name / "object.json").exists() and not (out / name / "parts").exists()
+        assert not (out / name / "texture").exists()
+        links = json.loads((out / name / "asset.json").read_text())["links"]
+        glbs = sorted(p.name for p in (out / name / "visual").glob("*.glb"))
+        assert glbs == sorted(f"{link['name']}.glb" for link in links)
+        assert {p.suffix for p in (out / name / "visual").iterdir()} <= {".glb", ".obj", ".png"}
+
+
+def test_keep_intermediate_keeps_the_generators_bundle_for_a_rebuild(tmp_path):
+    from asset_pipeline.assets.build import build_asset
+
+    images = _copy_examples(tmp_path / "in", ["microwave_t0000001"])
+    out = tmp_path / "out"
+    run_convert(images, out, ConvertSettings(**{**FAST.__dict__, "keep_intermediate": True}))
+    folder = out / "microwave_t0000001"
+    assert (folder / "object.json").is_file() and list((folder / "parts").glob("*.glb"))
+    build_asset(folder)  # the bundle builds again in place
+    assert (folder / "model.urdf").is_file()
 
 
 def test_rerun_skips_done_items_and_force_redoes_them(tmp_path):

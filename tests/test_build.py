@@ -363,3 +363,40 @@ def test_fallback_handle_uses_the_primitives_of_a_generated_part():
     np.testing.assert_allclose(
         h.position, [hi[0] - 0.05, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2], atol=1e-6
     )
+
+
+def test_visuals_are_light_and_physics_comes_from_the_full_meshes(tmp_path):
+    """A dense base mesh (a sphere of 20k triangles over its box primitive) is built with
+    a 3000-triangle budget: its visual holds no more, the URDF's collisions and inertials
+    are those of the full build, and MuJoCo loads the decimated, textured visual."""
+    import mujoco
+
+    obj = design_cabinet()
+    base = obj.parts[0]
+    dense = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
+    dense.apply_translation([0.0, 0.0, 0.4])
+    dense.visual.vertex_colors = [120, 80, 50, 255]
+    obj.parts[0] = Part("base", "base", dense, primitives=base.primitives)
+    obj.parts[2].primitives = [_box([0.23, -0.275, 0.415], [0.25, 0.275, 0.775])]
+    folders = {}
+    for n in (0, 3000):
+        folder = save_bundle(obj, tmp_path / f"faces_{n}")
+        build_asset(folder, options=BuildOptions(visual_faces=n))
+        folders[n] = folder
+    faces = {
+        n: sum(len(trimesh.load(f / "visual" / f"{p}.glb", force="mesh").faces) for p in
+               ("base", "drawer_0", "door_0"))
+        for n, f in folders.items()
+    }  # fmt: skip
+    assert faces[0] > 20_000 and faces[3000] <= 3000
+    full, light = (load_asset(folders[n]) for n in (0, 3000))
+    for a, b in zip(full.links, light.links, strict=True):
+        assert a.inertial.mass == pytest.approx(b.inertial.mass)
+        assert [c.filename for c in a.collisions] == [c.filename for c in b.collisions]
+    for name in ("base_0.obj", "door_0_0.obj"):
+        assert (folders[0] / "collision" / name).read_text() == (
+            folders[3000] / "collision" / name
+        ).read_text()
+    model = mujoco.MjModel.from_xml_path(str(folders[3000] / "model.xml"))
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "base_visual")
+    assert model.mesh_facenum[model.geom_dataid[gid]] <= 3000

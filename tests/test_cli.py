@@ -106,7 +106,7 @@ def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
     assert all(set(x["stage_seconds"]) == stages for x in lines)
     for name in names:  # the photo baked into every part, the asset scored against it
         assert (out / name / "camera.json").is_file()
-        assert any((out / name / "texture").glob("*.png"))
+        assert any((out / name / "visual").glob("*.png"))  # the textures, for MJCF
         fidelity = json.loads((out / name / "report.json").read_text())["fidelity"]
         assert 0.0 <= fidelity["score"] <= 1.0
     r = runner.invoke(app, ["ls", str(out), "--category", "cabinet"])
@@ -180,6 +180,6 @@ def test_convert_uses_pact_by_default(tmp_path):
         ],
     )
     assert r.exit_code == 0, r.output
-    obj = json.loads((out / "microwave_t0000001" / "object.json").read_text())
-    assert obj["provenance"]["generator"] == "pact"
-    assert obj["provenance"]["articulation_features"] == "stage2+types1"
+    asset = json.loads((out / "microwave_t0000001" / "asset.json").read_text())
+    assert asset["provenance"]["generator"] == "pact"
+    assert asset["provenance"]["articulation_features"] == "stage2+types1"

@@ -129,7 +129,7 @@ def test_convert_records_fidelity_and_ls_filters_on_it(tmp_path):
     assert 0.0 <= fidelity["score"] <= 1.0 and fidelity["silhouette_iou"] > 0.7
     camera = json.loads((asset / "camera.json").read_text())
     assert camera["schema"] == "pact.camera" and np.shape(camera["pose"]) == (4, 4)
-    assert (asset / "photo_view.png").is_file() and list((asset / "texture").glob("*.png"))
+    assert (asset / "photo_view.png").is_file() and list((asset / "visual").glob("*.png"))
     with Catalog(out, readonly=True) as cat:
         assert cat.get("dishwasher_t0000001").fidelity["score"] == fidelity["score"]
     runner = CliRunner()

@@ -498,7 +498,7 @@ def test_generated_files_are_readable_by_others(tmp_path):
         run_convert(images, out, FAST)
     finally:
         os.umask(old)
-    for name in ("model.urdf", "model.xml", "asset.json", "object.json"):
+    for name in ("model.urdf", "model.xml", "asset.json", "input.png", "visual/base.glb"):
         assert (out / "microwave_t0000001" / name).stat().st_mode & 0o777 == 0o644
 
 

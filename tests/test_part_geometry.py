@@ -260,8 +260,9 @@ def test_layout_from_raw_meshes_visuals_from_clean_ones():
     assert bar_faces > 0
     assert len(drawer.mesh.faces) == len(clean.part("drawer_1").mesh.faces) + bar_faces
     assert len(drawer.mesh.split(only_watertight=False)) == 2  # panel and bar
-    base_faces = len(clean.part("base").mesh.faces) + len(clean.part("drawer_2").mesh.faces)
-    assert len(out.part("base").mesh.faces) == base_faces
+    # the part the layout merged into the base is a sliver of it (under 2 % of its size):
+    # the base's visual drops it (mesh_repair.cleaning.drop_slivers)
+    assert len(out.part("base").mesh.faces) == len(clean.part("base").mesh.faces)
     # a clean base reaching 2 cm below the raw one: the base's boxes reach down with it
     # (the build stands the object on its meshes' lowest point)
     clean.part("base").mesh.vertices[:, 2] -= (

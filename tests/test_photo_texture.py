@@ -159,22 +159,22 @@ def test_textured_meshes_stay_closed_and_build_writes_base_colour_textures(baked
         assert visual.is_watertight, name
 
 
-def test_fine_mesh_subdivides_low_poly_parts_but_not_a_fine_mesh_with_one_long_cap():
+def test_fine_mesh_splits_the_long_edges_only():
     from asset_pipeline.photo.texture import _fine_mesh
 
     coarse = trimesh.creation.box((1.0, 1.0, 1.0))  # 12 faces, edges up to 1.41
-    fine, origin = _fine_mesh(coarse, 0.2, 4, long_share=0.05, max_faces=500_000)
-    assert len(fine.faces) == 12 * 4**3  # 1.41 / 2**3 = 0.18 <= 0.2
-    assert fine.is_watertight and len(origin) == len(fine.faces)
-    assert np.bincount(origin).tolist() == [64] * 12
-    # a finely meshed part whose one cut left a small cap of long faces: none is split
+    fine, origin = _fine_mesh(coarse, 0.2, 500_000)
+    assert fine.edges_unique_length.max() <= 0.2 and fine.is_watertight
+    assert len(origin) == len(fine.faces) and set(origin.tolist()) == set(range(12))
+    # a finely meshed part whose one cut left a small cap of long faces: only the cap and
+    # the faces round it split, the rest of the sphere keeps its faces
     sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces, edges ~0.06
     cut = trimesh.intersections.slice_mesh_plane(sphere, [0, 0, -1], [0, 0, 0.95], cap=True)
     assert cut.is_watertight
-    same, _ = _fine_mesh(cut, 0.2, 4, long_share=0.05, max_faces=500_000)
-    assert len(same.faces) == len(cut.faces)
-    # with no share allowed every face is split for the cap's sake
-    assert len(_fine_mesh(cut, 0.2, 4)[0].faces) >= len(cut.faces) * 4
+    split, origin = _fine_mesh(cut, 0.2, 500_000)
+    assert split.is_watertight and split.edges_unique_length.max() <= 0.2
+    assert len(cut.faces) < len(split.faces) < len(cut.faces) + 400
+    assert (np.bincount(origin, minlength=len(cut.faces)) == 1).mean() > 0.9
     # and never past max_faces
-    capped, _ = _fine_mesh(coarse, 0.01, 4, max_faces=1000)
-    assert len(capped.faces) == 12 * 4**3  # a fourth round would make 3072
+    capped, _ = _fine_mesh(coarse, 0.01, 1000)
+    assert 12 < len(capped.faces) <= 1000

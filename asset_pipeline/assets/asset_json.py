@@ -76,6 +76,7 @@ def asset_json_document(asset: BuiltAsset) -> dict[str, Any]:
         "links": links,
         "joints": joints,
         "handles": handles,
+        "provenance": asset.provenance,
     }
 
 
@@ -128,6 +129,11 @@ def apply_metadata(asset: BuiltAsset, doc: dict[str, Any], path: Path) -> None:
         hi = _vec3(b[1] if isinstance(b, list) and len(b) == 2 else None, "bounds", problems)
         if lo is not None and hi is not None:
             asset.bounds = np.stack([lo, hi])
+    provenance = doc.get("provenance", {})
+    if isinstance(provenance, dict):
+        asset.provenance = dict(provenance)
+    else:
+        problems.append(f"provenance: must be an object, got {type(provenance).__name__}")
     names = {k.name: k for k in asset.links}
     for i, d in enumerate(doc.get("links", [])):
         if not isinstance(d, dict) or d.get("name") not in names:

@@ -5,8 +5,11 @@ metric and watertight (:mod:`asset_pipeline.geometry.metric`), cuts convex colli
 (:mod:`asset_pipeline.geometry.coacd_collision`), rigs it (:mod:`asset_pipeline.assets.rig`) and writes the
 built-asset layout of ``docs/architecture.md`` into the bundle folder::
 
-    visual/<part>.glb  visual/<part>.obj  collision/<part>_<k>.obj
+    visual/<part>.glb  visual/<part>.obj (+ .png)  collision/<part>_<k>.obj
     model.urdf  model.xml  asset.json
+
+The visuals are the part meshes within ``BuildOptions.visual_faces`` triangles in all
+(decimated; the collision pieces, masses and joints come from the full meshes).
 
 Every file is written atomically (temporary name + rename). ``asset.json`` is
 removed first and written last, so a folder whose ``asset.json`` exists holds a
@@ -38,6 +41,7 @@ from asset_pipeline.geometry.voxel_collision import (
 from generator.articulated import ArticulatedObject
 from generator.bundle import load_bundle
 from generator.mesh_repair.closing import REMESH_RESOLUTION, MeshRepairError, watertight_object
+from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES, light_meshes
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +69,10 @@ class BuildOptions:
     #: primitives ignored) or "coacd" (each part's mesh decomposed alone by CoACD).
     collision: str = "auto"
     voxel: VoxelCollisionParams = VoxelCollisionParams()
+    #: Visual triangles of the asset in all (``--visual-faces``; 0 keeps every triangle):
+    #: the visuals are decimated to it (:mod:`generator.mesh_repair.decimation`); collision
+    #: pieces and masses come from the full meshes.
+    visual_faces: int = DEFAULT_VISUAL_FACES
 
     def __post_init__(self) -> None:
         if self.collision not in COLLISION_METHODS:
@@ -186,7 +194,8 @@ def build_asset(
         pieces[p.name] = found
         log.info("%s/%s: %d convex pieces", asset_id, p.name, len(found))
 
-    asset = build_rig(built, pieces, asset_id, options.physics)
+    visuals = light_meshes({p.name: p.mesh for p in built.parts}, options.visual_faces)
+    asset = build_rig(built, pieces, asset_id, options.physics, visuals=visuals)
     try:
         save_asset(asset, root)
     except OSError as e:

@@ -21,6 +21,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -208,7 +209,9 @@ class BuiltAsset:
 
     ``folder`` is where it lives on disk (None while it is being built);
     ``bounds`` (2, 3) the object-frame box of its visual geometry at rest;
-    ``metric_scale`` the metres per model unit the build applied.
+    ``metric_scale`` the metres per model unit the build applied; ``provenance`` where the
+    object came from (the generator or importer and its version, the source photo, and
+    where its category and motions came from), as the object model carried it.
     """
 
     id: str
@@ -219,6 +222,7 @@ class BuiltAsset:
     metric_scale: float = 1.0
     bounds: np.ndarray | None = None
     folder: Path | None = None
+    provenance: dict[str, Any] = field(default_factory=dict)
 
     # ---- structure
     def link(self, name: str) -> Link:

@@ -27,8 +27,9 @@ def obj_text(mesh: trimesh.Trimesh, uv: np.ndarray | None = None) -> str:
         )
     v = np.asarray(mesh.vertices, dtype=float)
     f = np.asarray(mesh.faces, dtype=np.int64) + 1
-    lines = [f"v {x:.8g} {y:.8g} {z:.8g}" for x, y, z in v]
-    lines += [f"vt {a:.8g} {b:.8g}" for a, b in np.asarray(uv, dtype=float)]
+    # 7 significant digits: a micrometre on a metre-sized object, a 1e-7 texel
+    lines = [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in v]
+    lines += [f"vt {a:.7g} {b:.7g}" for a, b in np.asarray(uv, dtype=float)]
     lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in f]
     return "\n".join(lines) + "\n"
 

@@ -413,9 +413,11 @@ def build_rig(
     pieces: Mapping[str, list[trimesh.Trimesh]],
     name: str,
     physics: PhysicsDefaults = PhysicsDefaults(),
+    visuals: Mapping[str, trimesh.Trimesh] | None = None,
 ) -> BuiltAsset:
     """The built asset of a metric, watertight ``obj`` whose part ``p`` collides as the
-    convex ``pieces[p]`` (object frame).
+    convex ``pieces[p]`` (object frame) and looks like ``visuals[p]`` (object frame;
+    default its own mesh).
 
     This is where the object model's parts, joints and handles become the built
     asset's links, joints and handles (the only such conversion). Base link first,
@@ -439,7 +441,9 @@ def build_rig(
                     Visual(
                         filename=f"visual/{p.name}.glb",
                         name=f"{p.name}_visual",
-                        mesh=textured_for_render(_in_link_frame(p.mesh, origin)),
+                        mesh=textured_for_render(
+                            _in_link_frame((visuals or {}).get(p.name, p.mesh), origin)
+                        ),
                     )
                 ],
                 collisions=[
@@ -503,4 +507,5 @@ def build_rig(
         category=obj.category,
         metric_scale=float(obj.provenance.get("metric_scale", obj.scale or 1.0)),
         bounds=obj.bounds(),
+        provenance=dict(obj.provenance),
     )

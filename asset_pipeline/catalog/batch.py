@@ -53,7 +53,6 @@ import contextlib
 import errno
 import fcntl
 import hashlib
-import io
 import json
 import logging
 import os
@@ -77,6 +76,8 @@ from asset_pipeline.catalog.workers import WorkerDied, WorkerPool
 from asset_pipeline.inputs.errors import InputError
 from asset_pipeline.inputs.folder import InputItem, SkippedFile, discover_inputs, load_input
 from asset_pipeline.validate import ReportFormatError, read_report
+from generator.bundle import remove_bundle
+from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES
 
 log = logging.getLogger(__name__)
 
@@ -113,6 +114,12 @@ class ConvertSettings:
     #: Render the asset from the photo's camera and score it (needs ``validate``: the
     #: score goes into report.json).
     fidelity: bool = True
+    #: Visual triangles per asset (``--visual-faces``; 0 keeps every triangle).
+    visual_faces: int = DEFAULT_VISUAL_FACES
+    #: Keep the generator's bundle (``object.json`` + ``parts/``) in the asset folder, so
+    #: that ``pact build`` can rebuild it (``--keep-intermediate``); off, the folder holds
+    #: the asset alone.
+    keep_intermediate: bool = False
 
     def digest(self, generator_version: str = "") -> str:
         fields = asdict(self)
@@ -225,6 +232,7 @@ def convert_item(
         result.generator_version = str(getattr(gen, "version", "0"))
         hints = dict(loaded.hints)
         hints.setdefault("seed", settings.seed)
+        hints["visual_faces"] = settings.visual_faces
         if loaded.alpha is not None:
             hints["alpha"] = loaded.alpha
         obj = gen.generate(loaded.image, loaded.mask, hints)
@@ -246,8 +254,12 @@ def convert_item(
         if item.mask_path is not None:
             shutil.copyfile(item.mask_path, staging / "input.mask.png")
         build_asset(
-            staging, height=loaded.height, options=BuildOptions(collision=settings.collision)
+            staging,
+            height=loaded.height,
+            options=BuildOptions(collision=settings.collision, visual_faces=settings.visual_faces),
         )
+        if not settings.keep_intermediate:
+            remove_bundle(staging)
         result.stage_seconds["build"] = time.perf_counter() - t
 
         status = "ok"
@@ -291,15 +303,12 @@ def photo_stage(
     """The ``texture`` stage: fit the photo's camera to ``obj`` (generator frame), write
     ``camera.json`` (in the built asset's metric frame) and, with ``settings.texture``,
     return ``obj`` with the photo baked into its part meshes (closed first, as the build
-    would close them) and each part's texture in ``texture/<part>.png``. Never raises: a
+    would close them; the build writes each texture into its visual). Never raises: a
     problem is appended to ``warnings`` and ``obj`` comes back unchanged."""
-    from PIL import Image
-
     from asset_pipeline.assets.build import BuildOptions, voxel_parts
     from asset_pipeline.geometry.metric import frame_offset, metric_factor
     from asset_pipeline.photo.camera import fit_camera, photo_silhouette, write_camera
-    from asset_pipeline.photo.texture import TEXTURE_DIR, bake_photo_texture
-    from generator.atomic_files import atomic_write_bytes
+    from asset_pipeline.photo.texture import bake_photo_texture
     from generator.mesh_repair.closing import watertight_object
 
     where = f"{loaded.item.image_path}"
@@ -320,10 +329,7 @@ def photo_stage(
             result, info = bake_photo_texture(
                 closed, loaded.image, camera, silhouette, loaded.mask, part_ids
             )
-            for name, image in info.pop("images").items():
-                buf = io.BytesIO()
-                Image.fromarray(image).save(buf, format="PNG")
-                atomic_write_bytes(staging / TEXTURE_DIR / f"{name}.png", buf.getvalue())
+            info.pop("images")  # the build writes them with the visuals
             extra["texture"] = info
         # the build makes the object metric with the same functions (mesh.to_metric)
         scale = metric_factor(closed, loaded.height, options.default_heights)

@@ -49,11 +49,9 @@ from scipy import ndimage
 
 from asset_pipeline.photo.camera import PhotoCamera, rest_transform, scene_mesh
 from generator.articulated import ArticulatedObject, Part
+from generator.mesh_repair.decimation import split_long_edges
 
 log = logging.getLogger(__name__)
-
-#: Folder of the asset where each part's texture image is also written as a PNG.
-TEXTURE_DIR = "texture"
 
 
 @dataclass(frozen=True)
@@ -77,15 +75,13 @@ class TextureOptions:
     block: int = 8
     #: Erosion (px) of the photo's part regions before use (drops blended edge pixels).
     erode: int = 1
-    #: Faces are subdivided until those with an edge longer than this fraction of the
-    #: object's bounding-box diagonal hold at most ``long_share`` of the part's area (at
-    #: most ``max_subdivisions`` times and ``max_faces`` faces; a generated mesh's faces
-    #: are smaller already, but for the few long ones a cut's cap leaves): a face's
-    #: texture coordinates come from its vertices.
+    #: Edges longer than this fraction of the object's bounding-box diagonal are split
+    #: (conforming, :func:`generator.mesh_repair.decimation.split_long_edges`) before the
+    #: bake, while a part stays within ``max_faces``: a face's texture coordinates come
+    #: from its vertices, so a large face (a decimated flat side, a procedural box) would
+    #: stretch one projection across it. Only long edges split: a fine mesh gains few faces.
     max_edge: float = 0.06
-    max_subdivisions: int = 4
-    long_share: float = 0.05
-    max_faces: int = 500_000
+    max_faces: int = 200_000
 
 
 def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
@@ -106,36 +102,15 @@ def face_colours(mesh: trimesh.Trimesh) -> np.ndarray | None:
 
 
 def _fine_mesh(
-    mesh: trimesh.Trimesh,
-    max_edge: float,
-    max_subdivisions: int,
-    long_share: float = 0.0,
-    max_faces: int | None = None,
+    mesh: trimesh.Trimesh, max_edge: float, max_faces: int
 ) -> tuple[trimesh.Trimesh, np.ndarray]:
-    """``mesh`` subdivided (every face into four, keeping the mesh closed) until the faces
-    with an edge longer than ``max_edge`` hold at most ``long_share`` of its area (or
-    another round would pass ``max_faces`` faces), and the original face of every new
-    face. A subdivision splits every face: with no share allowed, the long edges of one
-    cut's small cap made an 8000-face generated drawer 2 million faces."""
-    vertices = np.asarray(mesh.vertices, dtype=float)
+    """``mesh`` (geometry only) with its edges longer than ``max_edge`` split (while it
+    stays within ``max_faces``), and the original face of every new face."""
     faces = np.asarray(mesh.faces, dtype=np.int64)
-    origin = np.arange(len(faces))
-    for _ in range(max_subdivisions):
-        if len(faces) == 0 or (max_faces is not None and 4 * len(faces) > max_faces):
-            break
-        tri = vertices[faces]
-        long = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1) > max_edge
-        area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        if not long.any() or area[long].sum() <= long_share * area.sum():
-            break
-        vertices, new_faces, index = trimesh.remesh.subdivide(vertices, faces, return_index=True)
-        parent = np.empty(len(new_faces), np.int64)
-        for old, new in index.items():
-            parent[new] = old
-        faces, origin = new_faces, origin[parent]
-    if len(faces) == len(mesh.faces):
+    v, f, _, origin = split_long_edges(mesh.vertices, faces, max_edge, max_faces=max_faces)
+    if len(f) == len(faces):
         return mesh, origin
-    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False), origin
+    return trimesh.Trimesh(vertices=v, faces=f, process=False), origin
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -344,9 +319,7 @@ def bake_photo_texture(
     generator_colours = {}
     fine_parts = []
     for p in obj.parts:
-        mesh, origin_face = _fine_mesh(
-            p.mesh, max_edge, options.max_subdivisions, options.long_share, options.max_faces
-        )
+        mesh, origin_face = _fine_mesh(p.mesh, max_edge, options.max_faces)
         colours = face_colours(p.mesh)
         generator_colours[p.name] = None if colours is None else colours[origin_face]
         fine_parts.append(

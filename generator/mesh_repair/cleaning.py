@@ -241,3 +241,144 @@ def clean_parts(obj: ArticulatedObject) -> ArticulatedObject:
     if not changed:
         return obj
     return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
+
+
+# --------------------------------------------------------------------------- visual pieces
+
+#: A visual piece whose largest extent is under this share of its mesh's is a sliver ...
+SLIVER = 0.02
+#: ... and so is one holding under this share of its mesh's surface area.
+SLIVER_AREA = 1e-3
+
+
+def strict_pieces(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F,) piece label of every face, on the strictest count a reader may make: faces
+    belong to one piece only when they share an edge (two faces meeting at a vertex, or
+    through an edge that three faces share, are pieces apart), after coincident vertices
+    are merged (texture seams and split normals do not separate pieces)."""
+    n = len(mesh.faces)
+    if n == 0:
+        return np.zeros(0, np.int64)
+    g = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
+    g.merge_vertices(merge_tex=True, merge_norm=True)
+    comps = trimesh.graph.connected_components(g.face_adjacency, nodes=np.arange(n), min_len=1)
+    labels = np.empty(n, np.int64)
+    for k, c in enumerate(comps):
+        labels[c] = k
+    return labels
+
+
+def drop_slivers(
+    mesh: trimesh.Trimesh, extent: float = SLIVER, area: float = SLIVER_AREA
+) -> trimesh.Trimesh:
+    """``mesh`` without its slivers: zero-area faces, and pieces (:func:`strict_pieces`)
+    whose largest extent is under ``extent`` x the mesh's or whose area is under ``area`` x
+    its area. Visuals (texture coordinates, colours) are kept; ``mesh`` itself comes back
+    when nothing is dropped. A mesh with nothing but slivers keeps its largest piece."""
+    faces = np.asarray(mesh.faces)
+    if len(faces) == 0:
+        return mesh
+    tri = np.asarray(mesh.vertices, float)[faces]
+    face_area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    labels = strict_pieces(mesh)
+    n = int(labels.max()) + 1
+    size = float(np.linalg.norm(mesh.extents)) or 1.0
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, labels, tri.min(axis=1))
+    np.maximum.at(hi, labels, tri.max(axis=1))
+    piece_area = np.bincount(labels, weights=face_area, minlength=n)
+    keep_piece = (np.linalg.norm(hi - lo, axis=1) >= extent * size) & (
+        piece_area >= area * max(float(piece_area.sum()), 1e-30)
+    )
+    if not keep_piece.any():
+        keep_piece[int(np.argmax(piece_area))] = True
+    keep = keep_piece[labels] & (face_area > 0)
+    if keep.all():
+        return mesh
+    log.debug("drop_slivers: %d of %d faces dropped", int((~keep).sum()), len(keep))
+    out = mesh.submesh([np.flatnonzero(keep)], append=True)
+    return out
+
+
+def _colour_properties(mesh: trimesh.Trimesh) -> np.ndarray | None:
+    """(V, 4) float RGBA in 0..1 of a vertex- or face-coloured mesh, None otherwise."""
+    if mesh.visual.kind not in ("vertex", "face"):
+        return None
+    return np.asarray(mesh.visual.vertex_colors, float) / 255.0
+
+
+def union_solids(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh | None:
+    """The boolean union of closed ``meshes`` as one mesh (manifold3d), their vertex
+    colours carried over; None when one of them is not a closed volume (then nothing is
+    joined). Touching or overlapping solids become one piece; apart, they stay apart."""
+    import manifold3d
+
+    if not meshes or not all(is_closed(m) for m in meshes):
+        return None
+    colours = [_colour_properties(m) for m in meshes]
+    coloured = all(c is not None for c in colours)
+    solids = []
+    for m, c in zip(meshes, colours, strict=True):
+        props = np.asarray(m.vertices, np.float32)
+        if coloured:
+            props = np.concatenate([props, np.asarray(c, np.float32)], axis=1)
+        solids.append(
+            manifold3d.Manifold(
+                mesh=manifold3d.Mesh(
+                    vert_properties=np.ascontiguousarray(props),
+                    tri_verts=np.asarray(m.faces, np.uint32),
+                )
+            )
+        )
+    result = manifold3d.Manifold.batch_boolean(solids, manifold3d.OpType.Add).to_mesh()
+    props = np.asarray(result.vert_properties, float)
+    faces = np.asarray(result.tri_verts, np.int64)
+    if len(faces) == 0:
+        return None
+    out = trimesh.Trimesh(vertices=props[:, :3], faces=faces, process=False)
+    if coloured:
+        rgba = np.clip(np.round(props[:, 3:7] * 255.0), 0, 255).astype(np.uint8)
+        out.visual = trimesh.visual.ColorVisuals(out, vertex_colors=rgba)
+    # manifold3d splits a vertex whose colour differs between the solids that meet there
+    closed = trimesh.Trimesh(vertices=out.vertices, faces=out.faces, process=False)
+    closed.merge_vertices(merge_tex=True, merge_norm=True)
+    return out if closed.is_watertight and closed.is_winding_consistent else None
+
+
+def panel_and_handle(
+    mesh: trimesh.Trimesh, handle: trimesh.Trimesh | None = None
+) -> trimesh.Trimesh:
+    """A movable part's visual as at most two pieces: its panel and its handle.
+
+    Slivers are dropped (:func:`drop_slivers`); the pieces touching or overlapping the
+    largest one (a drawer's front and its tray) are joined with it into the panel
+    (:func:`union_solids`, when they are closed); ``handle`` (a handle the caller added)
+    is the handle, else the largest other piece when it is a plausible handle
+    (:func:`is_handle`). Whatever else is left is dropped (logged)."""
+    mesh = drop_slivers(mesh)
+    labels = strict_pieces(mesh)
+    ps = [mesh.submesh([np.flatnonzero(labels == k)], append=True) for k in np.unique(labels)]
+    if len(ps) == 1:
+        panel = ps[0]
+        others: list[trimesh.Trimesh] = []
+    else:
+        size = float(mesh.extents.max())
+        gs = groups(ps, TOUCH * size)
+        merged = []
+        for g in gs:
+            members = [ps[i] for i in g]
+            joined = union_solids(members) if len(members) > 1 else members[0]
+            merged.append(joined if joined is not None else trimesh.util.concatenate(members))
+        merged.sort(key=lambda m: -m.area)
+        panel, others = merged[0], merged[1:]
+    if handle is None and others and is_handle(panel, others[0], float(mesh.extents.max())):
+        handle, others = others[0], others[1:]
+    if others:
+        log.info(
+            "panel_and_handle: dropped %d piece(s), %.1f%% of the area",
+            len(others),
+            100.0 * sum(o.area for o in others) / max(mesh.area, 1e-30),
+        )
+    out = [panel] if handle is None else [panel, handle]
+    return trimesh.util.concatenate(out) if len(out) > 1 else panel

@@ -44,7 +44,8 @@ from scipy.spatial import cKDTree
 
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout, robust_bounds
-from generator.mesh_repair.cleaning import clean_mesh
+from generator.mesh_repair.cleaning import clean_mesh, drop_slivers, panel_and_handle, union_solids
+from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES, light_object
 from generator.pact.inference.sweep_clearance import keep_sweeps_apart
 from generator.pact.model.articulation import (
     DOOR_HINGE,
@@ -81,6 +82,9 @@ log = logging.getLogger(__name__)
 WEIGHTS_DIR = Path(__file__).parents[1] / "weights"
 VERSION = "pact-small-1"
 DEFAULT_COLOR = (180, 180, 180, 255)
+#: Share of the visual triangle budget the decoded meshes get; the layout's handles and
+#: drawer trays and the texture's split edges use the rest.
+VISUAL_FACES_SHARE = 0.85
 
 
 class PActWeightsError(FileNotFoundError):
@@ -468,8 +472,11 @@ class PActGenerator:
         mask: np.ndarray | None = None,
         hints: dict[str, Any] | None = None,
     ) -> ArticulatedObject:
-        run = self.run(image, mask, alpha=(hints or {}).get("alpha"))
-        obj = self.assemble(run, hints)
+        hints = hints or {}
+        run = self.run(image, mask, alpha=hints.get("alpha"))
+        # the visuals within their triangle budget from the start: the cuts, the photo's
+        # texture and the build then work on light meshes (the layout reads the raw ones)
+        obj = light_object(self.assemble(run, hints), self.visual_faces(hints))
         if not self.box_layout:
             return obj
         if not self.clean_geometry:
@@ -483,6 +490,14 @@ class PActGenerator:
                 raw_meshes[k] = mesh
         raw = self.assemble(dataclasses.replace(run, meshes=raw_meshes), hints)
         return with_visuals(fit_box_layout(raw), raw, obj)
+
+    @staticmethod
+    def visual_faces(hints: dict[str, Any]) -> int:
+        """Triangles the visuals may hold in all: ``hints["visual_faces"]`` (0: all), else
+        ``DEFAULT_VISUAL_FACES``; the handles and trays the layout adds come on top, and
+        stay within the rest of the default's margin (``VISUAL_FACES_SHARE``)."""
+        n = int(hints.get("visual_faces", DEFAULT_VISUAL_FACES))
+        return int(n * VISUAL_FACES_SHARE) if n > 0 else 0
 
     def generate_from_occupancy(
         self,
@@ -504,7 +519,10 @@ def with_visuals(
     body of its collision box (``drawer_body``), plus the bar the layout added (the faces
     after ``raw``'s mesh), the base's the clean base plus the clean meshes of the parts the layout
     merged into it. A part ``clean`` lacks keeps its mesh. Visuals of two parts that
-    would sweep into each other are cut apart (``sweep_clearance.keep_sweeps_apart``)."""
+    would sweep into each other are cut apart (``sweep_clearance.keep_sweeps_apart``).
+    Last, a movable part's visual is made its panel and its handle, nothing else
+    (``mesh_repair.cleaning.panel_and_handle``: a drawer's front and tray joined, the bar
+    as the handle, slivers of the cuts dropped), and the base loses its slivers."""
     names = {p.name for p in laid.parts}
     boxes = {p.name: _primitive_box(p) for p in laid.parts[1:] if p.primitives}
     meshes: dict[str, trimesh.Trimesh] = {}
@@ -524,8 +542,8 @@ def with_visuals(
                 mesh = clip_from_neighbours(c.mesh, boxes[p.name], others)
             if p.joint is not None and p.joint.type == "prismatic" and p.primitives:
                 body = drawer_body(mesh, _primitive_box(p), np.asarray(p.joint.axis, float))
-                if body is not None:
-                    mesh = trimesh.util.concatenate([mesh, body])
+                if body is not None:  # front and tray as one solid where both are closed
+                    mesh = union_solids([mesh, body]) or trimesh.util.concatenate([mesh, body])
             visuals[p.name] = mesh
             n = len(r.mesh.faces)
             if len(p.mesh.faces) > n:  # the layout's bar handle
@@ -535,8 +553,10 @@ def with_visuals(
     parts = []
     for p in laid.parts:
         mesh = visuals.get(p.name, meshes[p.name])
-        if p.name in bars:
-            mesh = trimesh.util.concatenate([mesh, bars[p.name]])
+        if p.name in visuals:  # a movable part: its panel (front and tray) and its handle
+            mesh = panel_and_handle(mesh, bars.get(p.name))
+        else:
+            mesh = drop_slivers(mesh)
         parts.append(Part(p.name, p.semantic, mesh, p.joint, p.primitives, p.handle, p.material))
     out = ArticulatedObject(parts, laid.category, laid.scale, dict(laid.provenance))
     _floor_base_boxes(out)
@@ -588,7 +608,7 @@ def drawer_body(mesh: trimesh.Trimesh, box: np.ndarray, axis: np.ndarray) -> tri
         wall(span, (hi[lat] - t, hi[lat]), height),
         wall((back, back + sign * t), full, height),  # back wall
     ]
-    body = trimesh.util.concatenate(pieces)
+    body = union_solids(pieces) or trimesh.util.concatenate(pieces)
     colours = getattr(mesh.visual, "vertex_colors", None)
     colour = (
         np.asarray(colours)[:, :4].mean(axis=0).astype(np.uint8)

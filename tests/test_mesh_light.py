@@ -1,0 +1,170 @@
+"""generator.mesh_repair: light meshes (decimation, budgets, edge splits) and clean pieces
+(slivers dropped, a movable part's visual as its panel and its handle)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from generator.articulated import ArticulatedObject, Joint, Part
+from generator.mesh_repair.cleaning import (
+    drop_slivers,
+    panel_and_handle,
+    strict_pieces,
+    union_solids,
+)
+from generator.mesh_repair.closing import is_closed_volume
+from generator.mesh_repair.decimation import (
+    MIN_PART_FACES,
+    decimate,
+    light_object,
+    part_budgets,
+    split_long_edges,
+)
+
+
+def _pieces(mesh: trimesh.Trimesh) -> int:
+    return len(np.unique(strict_pieces(mesh)))
+
+
+def _coloured_sphere(subdivisions: int = 5) -> trimesh.Trimesh:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.3)
+    rgba = np.zeros((len(m.vertices), 4), np.uint8)
+    rgba[:, 0] = np.where(m.vertices[:, 2] > 0, 200, 20)  # red on top, dark below
+    rgba[:, 3] = 255
+    m.visual = trimesh.visual.ColorVisuals(m, vertex_colors=rgba)
+    return m
+
+
+# --------------------------------------------------------------------------- decimation
+
+
+def test_budgets_share_by_area_and_leave_small_parts_alone():
+    big = trimesh.creation.icosphere(subdivisions=5, radius=1.0)  # 20480 faces, area 4 pi
+    mid = trimesh.creation.icosphere(subdivisions=5, radius=0.5)  # 20480 faces, area pi
+    small = trimesh.creation.box([0.1, 0.1, 0.1])  # 12 faces
+    b = part_budgets({"big": big, "mid": mid, "small": small}, 10_012)
+    assert b["small"] == 12  # within its share: kept, its rest goes to the others
+    # the other 10000 shared by area, 4 : 1
+    assert b["big"] == pytest.approx(8000, abs=2) and b["mid"] == pytest.approx(2000, abs=2)
+    assert part_budgets({"big": big}, 0) == {"big": 20480}  # 0 keeps everything
+    assert part_budgets({"big": big, "mid": mid}, 100)["mid"] == MIN_PART_FACES
+
+
+def test_decimate_keeps_a_closed_coloured_mesh_closed_and_coloured():
+    m = _coloured_sphere()
+    out = decimate(m, 2000)
+    assert len(out.faces) <= 2000
+    assert is_closed_volume(out) and _pieces(out) == 1
+    assert out.volume == pytest.approx(m.volume, rel=0.02)
+    rgba = np.asarray(out.visual.vertex_colors)
+    top = out.vertices[:, 2] > 0.05
+    assert (rgba[top, 0] > 150).all() and (rgba[out.vertices[:, 2] < -0.05, 0] < 60).all()
+    assert decimate(m, len(m.faces)) is m  # within the target: the mesh itself
+
+
+def test_decimate_keeps_a_texture_and_its_mapping():
+    m = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
+    # texture: left half (y < 0) red, right half blue, mapped by the y coordinate
+    uv = np.stack([(m.vertices[:, 1] / 0.6) + 0.5, np.full(len(m.vertices), 0.5)], axis=1)
+    img = np.zeros((8, 64, 3), np.uint8)
+    img[:, :32, 0] = 255
+    img[:, 32:, 2] = 255
+    material = trimesh.visual.material.PBRMaterial(baseColorTexture=Image.fromarray(img))
+    m.visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
+    out = decimate(m, 1500)
+    assert len(out.faces) <= 1500 and out.visual.kind == "texture"
+    assert len(out.visual.uv) == len(out.vertices)
+    # each vertex still maps to the side of the texture its position says
+    u = np.asarray(out.visual.uv)[:, 0]
+    far = np.abs(out.vertices[:, 1]) > 0.05
+    assert np.all((u[far] < 0.5) == (out.vertices[far, 1] < 0))
+
+
+def test_light_object_meets_the_budget_and_keeps_joints():
+    base = _coloured_sphere(5)
+    door = _coloured_sphere(4)
+    door.apply_translation([0.5, 0, 0])
+    joint = Joint("revolute", [0.5, 0.3, 0], [0, 0, 1], 0.0, 1.5)
+    obj = ArticulatedObject([Part("base", "base", base), Part("door_0", "door", door, joint)])
+    light = light_object(obj, 6000)
+    assert sum(len(p.mesh.faces) for p in light.parts) <= 6000
+    assert light.parts[1].joint is joint and light.category == obj.category
+    assert light_object(obj, 0) is obj
+
+
+def test_split_long_edges_is_conforming_and_keeps_a_box_closed():
+    box = trimesh.creation.box([1.0, 0.5, 0.2])
+    v, f, parents, origin = split_long_edges(box.vertices, box.faces, max_edge=0.2)
+    out = trimesh.Trimesh(v, f, process=False)
+    assert is_closed_volume(out) and out.volume == pytest.approx(0.1)
+    edges = out.edges_unique_length
+    assert edges.max() <= 0.2 + 1e-9
+    assert len(origin) == len(f) and origin.max() == len(box.faces) - 1
+    # every new vertex is the middle of its two parents
+    new = np.arange(len(box.vertices), len(v))
+    np.testing.assert_allclose(v[new], 0.5 * (v[parents[new, 0]] + v[parents[new, 1]]))
+    # a bound on faces stops the splitting before it passes it
+    _, f2, _, _ = split_long_edges(box.vertices, box.faces, max_edge=0.05, max_faces=200)
+    assert 12 < len(f2) <= 200
+
+
+# --------------------------------------------------------------------------- clean pieces
+
+
+def test_drop_slivers_drops_flecks_and_zero_area_faces_but_keeps_a_handle():
+    panel = trimesh.creation.box([0.02, 0.6, 0.4])
+    bar = trimesh.creation.box([0.02, 0.3, 0.02])
+    bar.apply_translation([0.03, 0, 0.1])  # apart from the panel, 50 % of its extent
+    fleck = trimesh.creation.box([0.003, 0.003, 0.003])
+    fleck.apply_translation([0.0, 0.35, 0.0])
+    flat = trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0]], [[0, 1, 2]])  # zero area
+    mesh = trimesh.util.concatenate([panel, bar, fleck, flat])
+    assert _pieces(mesh) == 4
+    out = drop_slivers(mesh)
+    assert _pieces(out) == 2 and len(out.faces) == 24
+    assert drop_slivers(panel) is panel
+
+
+def test_union_solids_joins_touching_solids_and_keeps_colours():
+    a = trimesh.creation.box([0.4, 0.4, 0.1])
+    b = trimesh.creation.box([0.1, 0.1, 0.3])
+    b.apply_translation([0, 0, 0.15])  # overlaps a
+    a.visual.vertex_colors = [200, 0, 0, 255]
+    b.visual.vertex_colors = [0, 0, 200, 255]
+    u = union_solids([a, b])
+    assert u is not None and _pieces(u) == 1 and is_closed_volume(u)
+    assert u.volume == pytest.approx(0.4 * 0.4 * 0.1 + 0.1 * 0.1 * 0.25, rel=1e-4)
+    rgba = np.asarray(u.visual.vertex_colors)
+    assert (rgba[u.vertices[:, 2] > 0.2, 2] == 200).all()
+    open_box = trimesh.creation.box([0.2, 0.2, 0.2])
+    open_box.update_faces(np.arange(10))
+    assert union_solids([a, open_box]) is None  # not closed: nothing joined
+
+
+def test_panel_and_handle_leaves_a_drawer_its_front_tray_and_bar():
+    front = trimesh.creation.box([0.02, 0.6, 0.3])
+    walls = []
+    for size, at in (
+        ([0.4, 0.6, 0.01], [-0.2, 0, -0.145]),  # floor
+        ([0.4, 0.01, 0.3], [-0.2, 0.295, 0]),  # side walls
+        ([0.4, 0.01, 0.3], [-0.2, -0.295, 0]),
+        ([0.01, 0.6, 0.3], [-0.395, 0, 0]),  # back wall
+    ):
+        w = trimesh.creation.box(size)
+        w.apply_translation(at)
+        walls.append(w)
+    bar = trimesh.creation.cylinder(radius=0.008, height=0.3)
+    bar.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    bar.apply_translation([0.05, 0, 0.05])
+    stray = trimesh.creation.box([0.05, 0.05, 0.05])  # a blob of the network, not a handle
+    stray.apply_translation([0.3, 0.0, 0.4])
+    mesh = trimesh.util.concatenate([front, *walls, stray])
+    assert _pieces(mesh) == 6
+    out = panel_and_handle(mesh, handle=bar)
+    assert _pieces(out) == 2
+    panel_volume = 0.02 * 0.6 * 0.3 + sum(w.volume for w in walls)
+    assert out.volume == pytest.approx(panel_volume + bar.volume, rel=0.05)  # overlaps counted once
+    assert out.bounds[1, 2] < 0.2  # the stray blob is gone
