@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES
 from generator.procedural import CATEGORIES
 
 app = typer.Typer(
@@ -155,6 +156,10 @@ def eval_gen(
 
 #: --collision values -> asset_pipeline.assets.build collision methods.
 COLLISION_OPTIONS = {"auto": "auto", "mesh": "voxel", "voxel": "voxel", "coacd": "coacd"}
+VISUAL_FACES_HELP = (
+    "Visual triangles per asset in all: its visual meshes are decimated to it (collisions "
+    "and masses come from the full meshes); 0 keeps every triangle."
+)
 
 
 def check_collision(value: str) -> None:
@@ -163,12 +168,18 @@ def check_collision(value: str) -> None:
 
 
 def _build_one(
-    bundle: Path, height: float | None, validate: bool, repair: bool, collision: str
+    bundle: Path,
+    height: float | None,
+    validate: bool,
+    repair: bool,
+    collision: str,
+    visual_faces: int,
 ) -> tuple[str, str]:
     """Build (and validate) one bundle; return (status, detail)."""
     from asset_pipeline.assets.build import BuildOptions, build_asset
 
-    result = build_asset(bundle, height=height, options=BuildOptions(collision=collision))
+    options = BuildOptions(collision=collision, visual_faces=visual_faces)
+    result = build_asset(bundle, height=height, options=options)
     detail = f"{sum(result.pieces.values())} pieces, {result.seconds:.1f} s"
     if not validate:
         return "built", detail
@@ -197,6 +208,9 @@ def build(
         True,
         "--catalog/--no-catalog",
         help="Register the assets of a folder of bundles in FOLDER/registry.sqlite.",
+    ),
+    visual_faces: int = typer.Option(
+        DEFAULT_VISUAL_FACES, min=0, help=VISUAL_FACES_HELP, show_default=True
     ),
 ) -> None:
     """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, asset.json.
@@ -232,7 +246,11 @@ def build(
         for root in sorted(set(catalog_of.values())):
             stack.enter_context(output_lock(root))
             catalogs[root] = stack.enter_context(Catalog(root))
-        _build_all(bundles, height, validate, repair, collision, catalogs, catalog_of, bad)
+        build = functools.partial(
+            _build_one, height=height, validate=validate, repair=repair,
+            collision=COLLISION_OPTIONS.get(collision, collision), visual_faces=visual_faces,
+        )  # fmt: skip
+        _build_all(bundles, build, catalogs, catalog_of, bad)
     for where, why in bad:
         console.print(f"[red]failed[/red] {escape(f'{where}: {why}')}")
     if bad:
@@ -241,10 +259,7 @@ def build(
 
 def _build_all(
     bundles: list[Path],
-    height: float | None,
-    validate: bool,
-    repair: bool,
-    collision: str,
+    build: Callable[[Path], tuple[str, str]],
     catalogs: dict,
     catalog_of: dict[Path, Path],
     bad: list[tuple[str, str]],
@@ -259,9 +274,7 @@ def _build_all(
         table.add_column(col)
     for b in bundles:
         try:
-            status, detail = _build_one(
-                b, height, validate, repair, COLLISION_OPTIONS.get(collision, collision)
-            )
+            status, detail = build(b)
         except Exception as e:  # one bad bundle never stops the batch
             logging.getLogger("pact.build").debug("build of %s failed", b, exc_info=True)
             status, detail = "failed", f"{type(e).__name__}: {e}"
@@ -510,6 +523,15 @@ def convert(
         help="Render the asset from the photo's camera and score its likeness to the photo "
         "(report.json, pact ls; needs --validate).",
     ),
+    visual_faces: int = typer.Option(
+        DEFAULT_VISUAL_FACES, min=0, help=VISUAL_FACES_HELP, show_default=True
+    ),
+    keep_intermediate: bool = typer.Option(
+        False,
+        "--keep-intermediate",
+        help="Keep the generator's bundle (object.json, parts/) in each asset folder, for "
+        "`pact build` to rebuild it.",
+    ),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -534,6 +556,8 @@ def convert(
         collision=COLLISION_OPTIONS.get(collision, collision),
         texture=texture,
         fidelity=fidelity,
+        visual_faces=visual_faces,
+        keep_intermediate=keep_intermediate,
     )
     log_file = None
     if log_json is not None and str(log_json) != "-":

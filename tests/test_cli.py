@@ -177,9 +177,21 @@ def test_convert_uses_pact_by_default(tmp_path):
             "--no-texture",
             "--no-fidelity",
             "--quiet",
+            "--visual-faces",
+            "3000",
+            "--keep-intermediate",
         ],
     )
     assert r.exit_code == 0, r.output
-    asset = json.loads((out / "microwave_t0000001" / "asset.json").read_text())
+    folder = out / "microwave_t0000001"
+    asset = json.loads((folder / "asset.json").read_text())
     assert asset["provenance"]["generator"] == "pact"
     assert asset["provenance"]["articulation_features"] == "stage2+types1"
+    # --visual-faces: the visuals hold at most 3000 triangles (PAct decodes ~250k)
+    import trimesh
+
+    faces = [len(trimesh.load(f, force="mesh").faces) for f in folder.glob("visual/*.glb")]
+    assert len(faces) == len(asset["links"]) and 1000 < sum(faces) <= 3000
+    # --keep-intermediate: the generator's bundle stays beside the asset
+    assert (folder / "object.json").is_file() and (folder / "parts" / "base.glb").is_file()
+
