@@ -114,10 +114,15 @@ def test_convert_records_fidelity_and_ls_filters_on_it(tmp_path):
     from asset_pipeline.catalog.batch import ConvertSettings, run_convert
     from pact_cli.main import app
 
+    from PIL import Image
+
     images = tmp_path / "in"
     images.mkdir()
     for f in EXAMPLES.glob("dishwasher_t0000001*"):
         shutil.copy(f, images / f.name)
+    # a photo taller than wide (its mask alike): the score reads the mask at the photo's size
+    for name in ("dishwasher_t0000001.png", "dishwasher_t0000001.mask.png"):
+        Image.open(images / name).crop((24, 0, 232, 256)).save(images / name)
     out = tmp_path / "out"
     settings = ConvertSettings(generator="retrieval", repair=False, preview=False)
     summary = run_convert(images, out, settings)

@@ -288,7 +288,8 @@ def measure_fidelity(
         raise FidelityUnavailable("no camera.json (the photo's camera was not estimated)")
     image, alpha = read_image(photo_path)
     mask_path = asset_dir / "input.mask.png"
-    mask = read_mask(mask_path, image.shape[:2]) if mask_path.is_file() else None
+    height, width = image.shape[:2]
+    mask = read_mask(mask_path, (width, height)) if mask_path.is_file() else None
     silhouette = photo_silhouette(image, mask, alpha)
     if silhouette is None:
         raise FidelityUnavailable(
