@@ -30,6 +30,7 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -190,6 +191,12 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=None, help="first N photos of each set")
     ap.add_argument("--objects", action="store_true", help="also print per-object figures")
     ap.add_argument(
+        "--visual-faces",
+        type=int,
+        default=None,
+        help="pact convert --visual-faces (default its own)",
+    )
+    ap.add_argument(
         "--rescore",
         action="store_true",
         help="do not convert: score the assets of an earlier run again (same --out, same "
@@ -212,6 +219,8 @@ def main() -> None:
     if args.set in ("examples", "both"):
         sets["examples"] = ROOT / "examples" / "images"
     settings = ConvertSettings(generator=args.generator, texture=not args.no_texture)
+    if args.visual_faces is not None:
+        settings = replace(settings, visual_faces=args.visual_faces)
     mode = "baseline" if args.no_texture else "texture"
     report: dict[str, Any] = {"generator": args.generator, "texture": not args.no_texture}
     for name, images in sets.items():

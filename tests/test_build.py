@@ -400,3 +400,30 @@ def test_visuals_are_light_and_physics_comes_from_the_full_meshes(tmp_path):
     model = mujoco.MjModel.from_xml_path(str(folders[3000] / "model.xml"))
     gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "base_visual")
     assert model.mesh_facenum[model.geom_dataid[gid]] <= 3000
+
+
+def test_a_part_that_cannot_be_closed_names_its_bundle_mesh_and_source_meshes(
+    tmp_path, monkeypatch
+):
+    """An imported bundle records each part's source meshes; a part the build cannot close
+    is named with them, so that a user knows which artist's file to repair."""
+    from generator.mesh_repair import closing
+
+    obj = normalized_cabinet()
+    obj.provenance.update(
+        source="/data/partnet/4711", meshes={"door_0": ["textured_objs/original-3.obj"]}
+    )
+    folder = save_bundle(obj, tmp_path / "imported")
+    real = closing.watertight
+
+    def refuse_the_door(mesh, resolution=closing.REMESH_RESOLUTION):
+        if len(mesh.faces) == len(obj.part("door_0").mesh.faces):
+            raise closing.MeshRepairError("voxel remesh did not give a closed volume")
+        return real(mesh, resolution)
+
+    monkeypatch.setattr(closing, "watertight", refuse_the_door)
+    with pytest.raises(BuildError) as err:
+        build_asset(folder, height=H, options=BuildOptions(collision="coacd"))
+    message = str(err.value)
+    assert "parts/door_0.glb" in message and "textured_objs/original-3.obj" in message
+    assert "/data/partnet/4711" in message and "closed volume" in message

@@ -158,6 +158,19 @@ def voxel_parts(obj: ArticulatedObject, options: BuildOptions) -> list[str]:
     return [p.name for p in obj.parts if options.collision == "voxel" or not p.primitives]
 
 
+def part_source(root: Path, obj: ArticulatedObject, part: str | None) -> str:
+    """Where a part's mesh comes from, for an error: its bundle file, and the source
+    meshes an importer recorded for it (``provenance["meshes"]``) with the source."""
+    if part is None:
+        return str(root / "parts")
+    where = str(root / "parts" / f"{part}.glb")
+    sources = (obj.provenance.get("meshes") or {}).get(part)
+    if sources:
+        origin = obj.provenance.get("source", "its source")
+        where += f" (from {', '.join(map(str, sources))} of {origin})"
+    return where
+
+
 def build_asset(
     bundle_dir: str | Path,
     *,
@@ -180,7 +193,7 @@ def build_asset(
     try:
         built = prepare_object(obj, height, options)
     except MeshRepairError as e:
-        raise BuildError(f"{root / 'parts'}: {e}") from e
+        raise BuildError(f"{part_source(root, obj, e.part)}: {e}") from e
 
     collide_boxes(built, options)
     pieces: dict[str, list[trimesh.Trimesh]] = {}

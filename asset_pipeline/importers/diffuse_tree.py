@@ -50,8 +50,8 @@ Conversion to this project's object model (``generator.articulated``):
   ``glb``/``glbs``, ``plys`` (override with ``mesh_priority``); all meshes of a part
   (its own and its merged fixed descendants') are concatenated. A mesh path must lead
   to a file inside the object.json's folder (``../x.obj`` or an absolute path elsewhere
-  is refused, as for PartNet-Mobility: :func:`~asset_pipeline.importers.partnet.mesh_in_folder`).
-- Degenerate meshes (:func:`~asset_pipeline.importers.partnet.check_part_mesh`, as for
+  is refused, as for PartNet-Mobility: :func:`~asset_pipeline.importers.source_format.mesh_in_folder`).
+- Degenerate meshes (:func:`~asset_pipeline.importers.source_format.check_part_mesh`, as for
   PartNet-Mobility): a part whose meshes have non-finite vertices or no face of non-zero
   area, or that cannot be closed, is refused naming the node and its files; one that is
   flat, has far too few faces, mostly zero-area faces or is badly non-manifold is
@@ -76,8 +76,13 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from asset_pipeline.importers.partnet import check_part_mesh, mesh_in_folder
-from asset_pipeline.importers.source_format import CATEGORY_MAP, ImportFormatError, sanitize_id
+from asset_pipeline.importers.source_format import (
+    CATEGORY_MAP,
+    ImportFormatError,
+    check_part_mesh,
+    mesh_in_folder,
+    sanitize_id,
+)
 from generator.articulated import BASE, ArticulatedObject, Joint, ObjectModelError, Part
 
 log = logging.getLogger(__name__)

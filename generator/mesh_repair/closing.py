@@ -32,7 +32,12 @@ REMESH_RESOLUTION = 64
 
 
 class MeshRepairError(ValueError):
-    """A part mesh could not be made watertight (the message says which step failed)."""
+    """A part mesh could not be made watertight (the message says which step failed);
+    ``part`` names the part when the mesh was one of an object's."""
+
+    def __init__(self, message: str, part: str | None = None) -> None:
+        super().__init__(message)
+        self.part = part
 
 
 def _geometry_copy(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
@@ -198,7 +203,7 @@ def watertight_object(
             else:
                 m = watertight(p.mesh, resolution)
         except MeshRepairError as e:
-            raise MeshRepairError(f"part {p.name!r}: {e}") from e
+            raise MeshRepairError(f"part {p.name!r}: {e}", part=p.name) from e
         parts.append(
             Part(
                 name=p.name,
