@@ -254,6 +254,10 @@ def test_colour_mask_refused(tmp_path: Path) -> None:
         ('{"id": "../evil"}', "id"),
         ('{"id": "registry.sqlite"}', "reserved"),
         ("[1, 2]", "JSON object"),
+        ('{"parts": {"2": {"motion": "slide_up"}}}', "parts.2.motion"),
+        ('{"parts": {"1": {"motion": "drawer"}}}', "movable part's mask id"),
+        ('{"parts": {"2": {"hinge": "left"}}}', "unknown keys"),
+        ('{"parsed": {"category": 1.5}}', "confidence"),
     ],
 )
 def test_bad_hints(tmp_path: Path, text: str, match: str) -> None:
@@ -276,6 +280,40 @@ def test_duplicate_names_and_missing_folder(tmp_path: Path) -> None:
 def test_check_hints_accepts_all_keys() -> None:
     h = {"id": "x_1", "category": "washing_machine", "height": 1, "seed": 3, "notes": "n"}
     assert check_hints(h) == {**h, "height": 1.0}
+    parsed = {"by": "parser-1", "category": 0.9, "mask": 0.75, "parts": {"2": 0.5}}
+    h = {"parts": {"2": {"motion": "door_left"}, "3": {"motion": "lid"}}, "parsed": parsed}
+    assert check_hints(h) == h
+
+
+def test_motions_follow_a_mask_renumbered_for_a_hidden_part(tmp_path: Path) -> None:
+    """A mask whose ids skip 3 (a part hidden in this view) is renumbered 4 -> 3; the
+    hints' motions and parser confidences, given by the ids as saved, follow."""
+    _rgba(tmp_path / "r.png")
+    ids = _good_mask()
+    ids[14:20, 22:30] = 4
+    _mask(tmp_path / "r.mask.png", ids)
+    hints = {"parts": {"2": {"motion": "door_left"}, "4": {"motion": "drawer"}},
+             "parsed": {"parts": {"4": 0.8}}}  # fmt: skip
+    (tmp_path / "r.json").write_text(json.dumps(hints))
+    (item,) = discover_inputs(tmp_path)
+    loaded = load_input(item)
+    assert sorted(np.unique(loaded.mask).tolist()) == [0, 1, 2, 3]
+    assert loaded.hints["parts"] == {"2": {"motion": "door_left"}, "3": {"motion": "drawer"}}
+    assert loaded.hints["parsed"]["parts"] == {"3": 0.8}
+    assert any("renumbered" in w for w in loaded.warnings)
+
+
+def test_motions_for_a_part_the_mask_lacks_are_refused(tmp_path: Path) -> None:
+    _rgba(tmp_path / "m.png")
+    _mask(tmp_path / "m.mask.png", _good_mask())
+    (tmp_path / "m.json").write_text('{"parts": {"3": {"motion": "drawer"}}}')
+    _expect(tmp_path, r"no part with id \[3\]", "m.json")
+
+
+def test_motions_without_a_mask_are_refused(tmp_path: Path) -> None:
+    _rgba(tmp_path / "n.png")
+    (tmp_path / "n.json").write_text('{"parts": {"2": {"motion": "drawer"}}}')
+    _expect(tmp_path, "has no mask", "n.json")
 
 
 def test_bundled_examples_all_load() -> None:

@@ -30,7 +30,7 @@ import numpy as np
 
 from asset_pipeline.inputs.asset_ids import ID_PATTERN, asset_id_for, is_reserved_id
 from asset_pipeline.inputs.errors import InputError
-from asset_pipeline.inputs.hints import read_hints
+from asset_pipeline.inputs.hints import check_part_ids, read_hints, renumber_parts
 from asset_pipeline.inputs.mask import check_mask_edges, check_mask_matches_photo, read_mask
 from asset_pipeline.inputs.photo import read_image
 
@@ -368,8 +368,16 @@ def load_input(item: InputItem) -> LoadedInput:
     image, alpha = read_image(item.image_path)
     h, w = image.shape[:2]
     warnings: list[str] = []
-    mask = None if item.mask_path is None else read_mask(item.mask_path, (w, h), warnings)
+    renumbered: dict[int, int] = {}
+    mask = (
+        None if item.mask_path is None else read_mask(item.mask_path, (w, h), warnings, renumbered)
+    )
     hints = {} if item.hints_path is None else read_hints(item.hints_path)
+    if renumbered:  # the hints name the parts by the ids as the mask was saved
+        hints = renumber_parts(hints, renumbered)
+    check_part_ids(
+        hints, None if mask is None else {int(v) for v in np.unique(mask)}, str(item.hints_path)
+    )
     if mask is not None:
         check_mask_matches_photo(mask, image, alpha, str(item.mask_path))
         warnings += check_mask_edges(mask, image, str(item.mask_path))

@@ -36,7 +36,10 @@ MASK_MIN_IOU = 0.5
 
 
 def read_mask(
-    path: str | Path, size: tuple[int, int] | None = None, warnings: list[str] | None = None
+    path: str | Path,
+    size: tuple[int, int] | None = None,
+    warnings: list[str] | None = None,
+    renumbered: dict[int, int] | None = None,
 ) -> np.ndarray:
     """Decode, clean and check a part mask; returns (H, W) uint8 ids.
 
@@ -45,7 +48,9 @@ def read_mask(
     grey with alpha (alpha ignored), and RGB/RGBA whose three colour channels are
     equal (a grey image saved as colour). The ids are cleaned (:func:`clean_mask`:
     in-between values, specks and small holes, skipped ids renumbered), each change
-    noted in ``warnings`` (naming the file), then checked (:func:`check_mask`).
+    noted in ``warnings`` (naming the file), then checked (:func:`check_mask`). The ids
+    that changed go into ``renumbered`` (old -> new), for what refers to them (the hints'
+    ``parts``).
     """
     path = Path(path)
     img = open_image(path, "mask")
@@ -80,7 +85,9 @@ def read_mask(
         )
     else:
         raise InputError(f"{path}: mask mode {img.mode} is not supported; save an 8-bit grey PNG")
-    ids, notes = clean_mask(np.asarray(ids), str(path))
+    ids, notes, mapping = clean_mask(np.asarray(ids), str(path))
+    if renumbered is not None:
+        renumbered.update(mapping)
     for note in notes:
         log.info("%s", note)
     if warnings is not None:
@@ -193,8 +200,11 @@ def _reassign(ids: np.ndarray, noise: np.ndarray) -> np.ndarray:
     return out
 
 
-def clean_mask(raw: np.ndarray, source: str = "<mask>") -> tuple[np.ndarray, list[str]]:
-    """Clean a mask as people and tools make them; returns (uint8 ids, notes).
+def clean_mask(
+    raw: np.ndarray, source: str = "<mask>"
+) -> tuple[np.ndarray, list[str], dict[int, int]]:
+    """Clean a mask as people and tools make them; returns (uint8 ids, notes, the ids
+    renumbered: old -> new).
 
     Reassigned to the id most frequent around them (:func:`_reassign`): values above
     MAX_PART_ID, specks (a component of an id, 4-connected, smaller than
@@ -247,17 +257,19 @@ def clean_mask(raw: np.ndarray, source: str = "<mask>") -> tuple[np.ndarray, lis
             log.debug("%s", note)
     ids = np.ascontiguousarray(ids, dtype=np.uint8)
     fg = [int(v) for v in np.unique(ids) if v > 0]
+    renumbered: dict[int, int] = {}
     if fg and 1 in fg and fg != list(range(1, len(fg) + 1)):
         lut = np.zeros(256, np.uint8)
         lut[fg] = np.arange(1, len(fg) + 1)
         ids = lut[ids]
-        mapping = ", ".join(f"{old} -> {lut[old]}" for old in fg if lut[old] != old)
+        renumbered = {old: int(lut[old]) for old in fg if lut[old] != old}
+        mapping = ", ".join(f"{old} -> {new}" for old, new in renumbered.items())
         missing = sorted(set(range(1, max(fg) + 1)) - set(fg))
         notes.append(
             f"{source}: mask part ids {fg} skip {missing} (a movable part hidden in this view?); "
             f"renumbered {mapping}"
         )
-    return ids, notes
+    return ids, notes, renumbered
 
 
 def check_mask(ids: np.ndarray, source: str = "<mask>") -> None:
