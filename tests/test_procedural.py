@@ -325,3 +325,90 @@ def test_sample_object_output_is_unchanged() -> None:
             for seed in range(5):
                 h.update(_object_digest(sample_object(category, seed, split)).encode())
         assert h.hexdigest() == SAMPLE_OBJECT_DIGESTS[category], category
+
+
+# --------------------------------------------------------------------------- realistic variety
+
+REAL_SEEDS = (0, 1, 2)
+
+
+@cache
+def _real(category: str, seed: int) -> ArticulatedObject:
+    from generator.procedural.realistic import sample_realistic_object
+
+    return sample_realistic_object(category, seed)
+
+
+def test_realistic_objects_are_valid_metric_and_labelled() -> None:
+    from generator.motions import MOTIONS, motion_of
+    from generator.procedural.realistic import REALISTIC_CATEGORIES
+
+    assert REALISTIC_CATEGORIES == (*CATEGORIES, "other")
+    for category in REALISTIC_CATEGORIES:
+        for seed in REAL_SEEDS:
+            obj = _real(category, seed)
+            obj.validate()
+            assert obj.scale == 1.0 and obj.category == category
+            assert obj.provenance["generator"] == "procedural_realistic"
+            lo, hi = obj.bounds()
+            assert abs(lo[2]) < 1e-6 and 0.15 < hi[2] < 2.3, (category, seed, hi[2])
+            for part in obj.parts:
+                assert part.mesh.is_watertight and part.mesh.volume > 0, (category, part.name)
+            if category == "other":
+                assert obj.movable_parts == []
+                continue
+            assert obj.movable_parts, (category, seed)
+            for part in obj.movable_parts:
+                assert motion_of(part) in MOTIONS
+                assert part.handle is not None and part.handle.kind in {"bar", "knob", "recessed"}
+            for a, b in itertools.combinations(obj.parts, 2):
+                assert _overlap(a.mesh, b.mesh) < 1e-6, (category, seed, a.name, b.name)
+
+
+def test_realistic_objects_are_deterministic_and_varied() -> None:
+    from generator.procedural.realistic import sample_realistic_object
+
+    for category in ("cabinet", "refrigerator", "other"):
+        a, b = _real(category, 1), sample_realistic_object(category, 1)
+        assert a.provenance == b.provenance
+        for pa, pb in zip(a.parts, b.parts, strict=True):
+            assert np.array_equal(pa.mesh.vertices, pb.mesh.vertices)
+        assert a.provenance["params"] != _real(category, 2).provenance["params"]
+    kinds = {_real("cabinet", s).provenance["params"]["kind"] for s in REAL_SEEDS}
+    kinds |= {
+        sample_realistic_object("cabinet", s).provenance["params"]["kind"] for s in range(3, 12)
+    }
+    assert len(kinds) >= 4, kinds
+
+
+def test_realistic_looks_have_metric_textures_and_tones() -> None:
+    """Wood grain, brushed steel and paint are metric textures; windows, displays and
+    countertops are further tones of their part's look."""
+    from generator.procedural.appearance import METRIC_TEXTURE_SIZE
+
+    textured = toned = 0
+    for category in ("cabinet", "oven", "microwave"):
+        for seed in REAL_SEEDS:
+            for p in _real(category, seed).parts:
+                vis = p.mesh.visual
+                if isinstance(vis, trimesh.visual.TextureVisuals):
+                    textured += 1
+                    assert vis.material.image.size == (METRIC_TEXTURE_SIZE, METRIC_TEXTURE_SIZE)
+                    assert np.all((vis.uv >= 0) & (vis.uv <= 1))
+                    colours = np.unique(np.asarray(vis.material.image).reshape(-1, 3), axis=0)
+                else:
+                    colours = np.unique(vis.vertex_colors[:, :3], axis=0)
+                toned += len(colours) > 2
+    assert textured > 0 and toned > 0
+
+
+def test_realistic_sampling_leaves_sample_object_alone() -> None:
+    from generator.procedural.realistic import realistic_object_id, sample_realistic_object
+
+    before = _object_digest(sample_object("oven", 4))
+    sample_realistic_object("oven", 4)
+    assert _object_digest(sample_object("oven", 4)) == before
+    assert realistic_object_id("oven", 4) == "oven_r0000004"
+    assert realistic_object_id("oven", 4, "test") == "oven_q0000004"
+    with pytest.raises(UnknownCategoryError):
+        sample_realistic_object("sofa", 0)

@@ -21,20 +21,21 @@ from generator.procedural.solids import union_mesh
 class PartSpec:
     """One part before meshing.
 
-    ``accent[i]`` says whether ``primitives[i]`` is a trim (handle, knob) painted in the
-    accent colour; ``order`` is (z, y) of the part's front centre (m), used for naming.
+    ``accent[i]`` is the tone of ``primitives[i]`` (``generator.procedural.appearance``):
+    False for the body colour, True for a trim (handle, knob) painted in the accent
+    colour, 2, 3, .. for the look's further tones; ``order`` is (z, y) of the part's front centre (m), used for naming.
     """
 
     semantic: str
     material: str
     look: Look
     primitives: list[Primitive] = field(default_factory=list)
-    accent: list[bool] = field(default_factory=list)
+    accent: list[bool | int] = field(default_factory=list)
     joint: Joint | None = None
     handle: Handle | None = None
     order: tuple[float, float] = (0.0, 0.0)
 
-    def add(self, prims: list[Primitive], accent: bool = False) -> None:
+    def add(self, prims: list[Primitive], accent: bool | int = False) -> None:
         self.primitives.extend(prims)
         self.accent.extend([accent] * len(prims))
 

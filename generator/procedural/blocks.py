@@ -163,7 +163,10 @@ def feet(xs: Sequence[float], ys: Sequence[float], height: float, radius: float)
 
 @dataclass(frozen=True)
 class HandleStyle:
-    """A handle design. ``kind``: "bar", "knob" or "recessed". Metres: ``length`` of the
+    """A handle design. ``kind``: "bar", "knob" or "recessed", or one of the shapes of
+    realistic objects: "square_bar" (a bar of square section on square posts), "pipe"
+    (a round bar on round posts: fridge and oven bars) and "edge_pull" (a flat lip
+    standing straight out of the face). Metres: ``length`` of the
     bar (or recess) along its grip axis; ``radius`` of the bar or knob; ``standoff`` of
     the bar centre (or the knob's stem) from the front face; ``width`` of a recess across
     the grip axis; ``depth_frac`` recess depth / panel thickness (10-15 mm deep);
@@ -223,6 +226,9 @@ def slab_with_handle(
     if style.kind == "recessed":
         return _recessed_pull(lo, hi, normal, style, grip, along)
     panel = [box(lo, hi)]
+    if style.kind in _SHAPED_BARS:
+        trims, position = _shaped_bar(style, grip, normal, along, face)
+        return panel, trims, Handle(position=position, axis=_unit(along), kind="bar")
     if style.kind == "bar":
         centre = grip + n * style.standoff
         trims = [cylinder(centre, style.radius, style.length, along)]
@@ -245,6 +251,47 @@ def slab_with_handle(
         cylinder(knob_centre, style.radius, thick, normal),
     ]
     return panel, trims, Handle(position=knob_centre, axis=_unit(along), kind="knob")
+
+
+_SHAPED_BARS = ("square_bar", "pipe", "edge_pull")
+
+
+def _shaped_bar(
+    style: HandleStyle, grip: np.ndarray, normal: int, along: int, face: float
+) -> tuple[list[Primitive], np.ndarray]:
+    """The trims of a "square_bar", "pipe" or "edge_pull" handle centred on ``grip`` (on
+    the face) and the grasp point."""
+    across = 3 - normal - along
+    n = _unit(normal)
+    if style.kind == "edge_pull":  # a flat lip: thin across, sticking out by the standoff
+        lo, hi = grip.copy(), grip.copy()
+        lo[normal], hi[normal] = face - EPS, face + style.standoff
+        lo[along], hi[along] = grip[along] - style.length / 2, grip[along] + style.length / 2
+        half = max(0.003, 0.5 * style.radius)
+        lo[across], hi[across] = grip[across] - half, grip[across] + half
+        return [box(lo, hi)], grip + n * style.standoff * 0.6
+    centre = grip + n * style.standoff
+    if style.kind == "square_bar":
+        lo, hi = centre - style.radius, centre + style.radius
+        lo[along], hi[along] = centre[along] - style.length / 2, centre[along] + style.length / 2
+        trims = [box(lo, hi)]
+    else:
+        trims = [cylinder(centre, style.radius, style.length, along)]
+    post = 1.4 * style.radius
+    offset = style.length / 2 - max(0.015, 0.06 * style.length)
+    for sign in (-1.0, 1.0):
+        p = grip.copy()
+        p[along] = grip[along] + sign * offset
+        stem = style.standoff + EPS
+        if style.kind == "pipe":
+            trims.append(cylinder(p + n * (stem / 2 - EPS), 0.5 * post, stem, normal))
+        else:
+            lo, hi = p.copy(), p.copy()
+            lo[normal], hi[normal] = face - EPS, centre[normal]
+            lo[along], hi[along] = p[along] - post / 2, p[along] + post / 2
+            lo[across], hi[across] = p[across] - post / 2, p[across] + post / 2
+            trims.append(box(lo, hi))
+    return trims, centre
 
 
 #: Recessed pulls (m): pocket depth range, panel left behind the pocket, bridge width
@@ -380,12 +427,15 @@ def drawer(
     handle: HandleStyle,
     look: Look,
     material: str,
+    handle_count: int = 1,
 ) -> PartSpec:
     """A drawer: front panel ``lo``..``hi`` (front face at ``hi[0]``) with its handle, and a
     box (four walls and a bottom) reaching into ``op`` with ``clear`` metres of clearance.
 
     Prismatic joint along +x, travel ``range_frac`` of the drawer depth (front face to
     box back), so the box stays engaged in the carcass when fully open.
+    ``handle_count`` 2 puts two handles (not recessed) a quarter of the width in from
+    either side (wide dresser drawers); the part's Handle is the left one.
     """
     ds = drawer_style
     xb, xf = lo[0], hi[0]
@@ -395,7 +445,17 @@ def drawer(
         zg = hi[2] - 0.012 - style.width / 2
     else:
         zg = lo[2] + (hi[2] - lo[2]) * (0.5 if hi[2] - lo[2] < 0.25 else 0.75)
-    panel, trims, grip = slab_with_handle(lo, hi, 0, style, np.array([xf, yc, zg]), along=1)
+    if handle_count == 2 and style.kind != "recessed":
+        quarter = (hi[1] - lo[1]) / 4
+        style = _fit_handle(handle, quarter * 1.6, hi[2] - lo[2])
+        panel, trims, grip = slab_with_handle(
+            lo, hi, 0, style, np.array([xf, yc - quarter, zg]), along=1
+        )
+        trims = (
+            trims + slab_with_handle(lo, hi, 0, style, np.array([xf, yc + quarter, zg]), along=1)[1]
+        )
+    else:
+        panel, trims, grip = slab_with_handle(lo, hi, 0, style, np.array([xf, yc, zg]), along=1)
     by0, by1 = max(lo[1], op.y0 + clear), min(hi[1], op.y1 - clear)
     bz0 = max(lo[2], op.z0 + clear)
     bz1 = bz0 + ds.height_frac * (op.z1 - clear - bz0)
@@ -471,7 +531,14 @@ def hinged_panel(
     axis /= np.linalg.norm(axis)
 
     style = _fit_handle(handle, hi[along] - lo[along], hi[edge_axis] - lo[edge_axis])
-    half_across = {"bar": 0.8 * style.radius, "knob": style.radius, "recessed": style.width / 2}
+    half_across = {
+        "bar": 0.8 * style.radius,
+        "knob": style.radius,
+        "recessed": style.width / 2,
+        "square_bar": style.radius,
+        "pipe": style.radius,
+        "edge_pull": 0.5 * style.radius,
+    }
     margin = max(style.edge_margin, half_across[style.kind] + 0.012)
     margin = min(margin, 0.3 * (hi[edge_axis] - lo[edge_axis]))
     grip = c.copy()
