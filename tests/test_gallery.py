@@ -1,15 +1,21 @@
-"""The HTML gallery: page structure, 3D scenes, the local server, and headless-Chromium
+"""The HTML gallery: page structure, 3D scenes, the local server, headless-Chromium
 screenshots (the page as a whole, and the 3D view drawing an object whose door a
-slider opens)."""
+slider opens), and the mask editor (its server's refusals without a browser; a person's
+edit, save and re-conversion driven through Chromium with playwright)."""
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import math
 import re
+import shutil
 import subprocess
+import urllib.error
 import urllib.request
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,8 +23,12 @@ import trimesh
 from asset_fixtures import write_box_cabinet, write_two_part_cabinet
 from PIL import Image
 
+from asset_pipeline.catalog.batch import ConvertSettings, run_convert
 from asset_pipeline.catalog.registry import Catalog, register_asset_dir
-from asset_pipeline.gallery.page import Shot, screenshots, serving, write_gallery
+from asset_pipeline.gallery.editor import MOTION_LABELS, edited_hints
+from asset_pipeline.gallery.page import CHROMIUM_FLAGS, Shot, screenshots, serving, write_gallery
+from asset_pipeline.inputs.folder import hash_files
+from generator.motions import MOTIONS
 
 REPO = Path(__file__).resolve().parents[1]
 CHROMIUM = Path("/usr/bin/chromium")
@@ -27,6 +37,13 @@ needs_chromium = pytest.mark.skipif(
     not CHROMIUM.exists() or not THREE.exists(),
     reason="needs /usr/bin/chromium and three.js (scripts/setup.sh installs both: apt-get "
     "install -y chromium as root; npm pack three)",
+)
+
+#: The mask editor's browser test drives Chromium with playwright; it needs no three.js.
+needs_browser = pytest.mark.skipif(
+    not CHROMIUM.exists(),
+    reason="needs /usr/bin/chromium (scripts/setup.sh installs it as root: apt-get install -y "
+    "chromium)",
 )
 
 
@@ -337,3 +354,275 @@ def test_3d_view_draws_the_object_and_a_slider_opens_the_door(tmp_path: Path) ->
     assert abs(cols.mean() - front.shape[1] / 2) < 40 and abs(rows.mean() - front.shape[0] / 2) < 60
     for img in (closed, opened):
         assert _red(img).mean() > _blue(img).mean() / 4  # the 3/4 view shows top and side
+
+
+# --------------------------------------------------------------------------- mask editor
+
+EXAMPLES = REPO / "examples" / "images"
+OVEN = "oven_t0000001"
+#: The hints the photo parser left beside the photo: a category, a mask and part 2's
+#: motion, each with its confidence.
+PARSER_HINTS = {
+    "category": "oven",
+    "height": 0.884,
+    "notes": "left of the sink",
+    "parts": {"2": {"motion": "flap_bottom"}},
+    "parsed": {"by": "parser-test", "category": 0.55, "mask": 0.8, "parts": {"2": 0.9}},
+}
+
+
+def _folder_state(folder: Path) -> dict[str, tuple[int, int, bytes]]:
+    """Every file under ``folder`` (hidden ones too) with its size, mtime and bytes, and
+    every folder; SQLite's shared-memory index (which readers touch) left out."""
+    return {
+        p.relative_to(folder).as_posix(): (
+            (p.stat().st_size, p.stat().st_mtime_ns, p.read_bytes()) if p.is_file() else "dir"
+        )
+        for p in sorted(folder.rglob("*"))
+        if not p.name.endswith("-shm")
+    }
+
+
+def _editor_request(url: str, body: Any, origin: str | None = None, host: str | None = None):
+    """POST ``body`` to the editor's save endpoint; returns (status, JSON answer)."""
+    data = body if isinstance(body, bytes) else json.dumps(body).encode()
+    req = urllib.request.Request(url + "api/editor/save", data=data, method="POST")
+    req.add_header("Content-Type", "application/json")
+    req.add_header("Origin", origin if origin is not None else url.rstrip("/"))
+    if host is not None:
+        req.add_header("Host", host)
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def _png_b64(ids: np.ndarray) -> str:
+    buf = io.BytesIO()
+    Image.fromarray(ids.astype(np.uint8), "L").save(buf, format="PNG")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def test_motion_words_name_every_motion() -> None:
+    assert tuple(MOTION_LABELS) == MOTIONS
+    assert MOTION_LABELS["drawer"] == "drawer (slides out)"
+    assert "hinged left" in MOTION_LABELS["door_left"]
+
+
+def test_edited_hints_move_what_the_parser_wrote_with_the_parts() -> None:
+    """Part 3 of the opened mask was erased, so part 4 is saved as 3; the person set part
+    2's motion and drew part 4 anew; the category was confirmed; the mask changed."""
+    existing = {
+        "id": "kitchen_01",
+        "category": "cabinet",
+        "seed": 3,
+        "parts": {"2": {"motion": "door_left"}, "3": {"motion": "lid"}, "4": {"motion": "drawer"}},
+        "parsed": {"by": "p1", "category": 0.4, "mask": 0.7, "parts": {"2": 0.6, "3": 0.5, "4": 0.8}},
+    }  # fmt: skip
+    request = {
+        "category": "cabinet",
+        "parts": {"2": {"motion": "door_right"}, "3": {"motion": "drawer"}, "4": {"motion": ""}},
+        "confirmed": ["2"],
+        "from": {"2": 2, "3": 4, "4": None},
+    }
+    hints = edited_hints(existing, {2, 3, 4}, mask_changed=True, request=request)
+    assert hints == {
+        "id": "kitchen_01",
+        "category": "cabinet",
+        "seed": 3,
+        "parts": {"2": {"motion": "door_right"}, "3": {"motion": "drawer"}},
+        "parsed": {"by": "p1", "parts": {"3": 0.8}},  # old part 4's confidence, now part 3
+    }
+    # nothing set, mask unchanged: the parser's record stays whole
+    same = edited_hints(existing, {2, 3, 4}, False, {"parts": existing["parts"], "confirmed": []})
+    assert same == existing
+    # a client that sends the mask alone: the parts keep their motions through `from`
+    moved = edited_hints(existing, {2, 3}, True, {"from": {"2": 2, "3": 4}})
+    assert moved["parts"] == {"2": {"motion": "door_left"}, "3": {"motion": "drawer"}}
+    assert moved["parsed"] == {"by": "p1", "category": 0.4, "parts": {"2": 0.6, "3": 0.8}}
+    # every field set by the person: no parser record left
+    mine = edited_hints(
+        {"parsed": {"category": 0.3, "mask": 0.2, "parts": {"2": 0.1}}},
+        {2},
+        False,
+        {"category": "desk", "mask_confirmed": True, "parts": {"2": {"motion": "lid"}},
+         "confirmed": ["2"]},
+    )  # fmt: skip
+    assert mine == {"category": "desk", "parts": {"2": {"motion": "lid"}}}
+
+
+def test_editor_server_refuses_bad_saves_and_writes_nothing(tmp_path: Path) -> None:
+    """Without a browser: a bad motion, an id not in the catalog, a path as id, a mask
+    whose ids skip a number or of the wrong size, another origin or host: each refused
+    with a reason, and neither the photo folder nor OUT changes."""
+    photos, out = _fake_outputs(tmp_path)
+    with Catalog(out) as cat:
+        for name in ("cab_a", "mw"):
+            register_asset_dir(cat, out / name, source_image=str(photos / f"{name}.png"))
+        register_asset_dir(cat, out / "cab_b")  # no photo: not editable
+    write_gallery(out)
+    page = (out / "index.html").read_text()
+    assert page.count("class='edit-mask'") == 2  # the two assets with a photo
+    assert "pact gallery OUT --serve" in page
+    mask = np.asarray(Image.open(photos / "cab_a.mask.png"))
+    good = {"id": "cab_a", "mask": _png_b64(mask), "parts": {"2": {"motion": "drawer"}}}
+    gap = mask.copy()
+    gap[gap == 2] = 3
+    cases = [
+        ({**good, "parts": {"2": {"motion": "sideways"}}}, {}, 400, "'sideways' is not one of"),
+        ({**good, "id": "nope"}, {}, 404, "no asset 'nope'"),
+        ({**good, "id": "../photos/cab_a"}, {}, 404, "no asset"),
+        ({**good, "id": "cab_b"}, {}, 409, "only assets converted from a photo"),
+        ({**good, "mask": _png_b64(gap)}, {}, 400, "ids [2] are missing"),
+        ({**good, "mask": _png_b64(mask[:50])}, {}, 400, "must be the same size"),
+        ({**good, "parts": {"3": {"motion": "drawer"}}}, {}, 400, "has no part 3"),
+        ({**good, "category": "sofa"}, {}, 400, "'sofa' is not one of"),
+        (good, {"origin": "http://evil.example"}, 403, "only from its own page"),
+        (good, {"origin": "null"}, 403, "only from its own page"),
+    ]
+    before = (_folder_state(photos), _folder_state(out))
+    with serving(out) as url:
+        with urllib.request.urlopen(url + "api/editor", timeout=10) as r:
+            info = json.loads(r.read())
+        assert info["enabled"] and [m for m, _ in info["motions"]] == list(MOTIONS)
+        with urllib.request.urlopen(url + "api/editor/asset?id=cab_a", timeout=10) as r:
+            state = json.loads(r.read())
+        assert (state["width"], state["height"], state["ids"]) == (128, 96, [1, 2])
+        with urllib.request.urlopen(url + "api/editor/mask?id=cab_a", timeout=10) as r:
+            assert np.array_equal(np.asarray(Image.open(io.BytesIO(r.read()))), mask)
+        for body, headers, status, message in cases:
+            code, answer = _editor_request(url, body, **headers)
+            assert (code, message in answer["error"]) == (status, True), (body.get("id"), answer)
+        # a page of another name for this machine (DNS rebinding) may not even read
+        port = url.rstrip("/").rsplit(":", 1)[1]
+        code, answer = _editor_request(url, good, host=f"attacker.example:{port}")
+        assert code == 403 and "answers only requests to http://127.0.0.1" in answer["error"]
+    assert (_folder_state(photos), _folder_state(out)) == before  # the catalog too
+    # bound to another loopback address the editor is off, and says why
+    with serving(out, host="127.0.0.2") as url:
+        with urllib.request.urlopen(url + "api/editor", timeout=10) as r:
+            info = json.loads(r.read())
+        assert (
+            not info["enabled"] and "only when the gallery is served on 127.0.0.1" in info["reason"]
+        )
+        code, answer = _editor_request(url, good)
+        assert code == 403
+    assert _folder_state(photos) == before[0]
+
+
+def _launch_chromium(playwright: Any, profile: Path) -> Any:
+    return playwright.chromium.launch_persistent_context(
+        str(profile),
+        executable_path=str(CHROMIUM),
+        headless=True,
+        args=[f for f in CHROMIUM_FLAGS if f != "--headless"],
+        viewport={"width": 1280, "height": 900},
+    )
+
+
+@needs_browser
+@pytest.mark.slow
+def test_mask_editor_draws_a_part_saves_and_the_card_shows_the_new_asset(tmp_path: Path) -> None:
+    """A person opens the editor on a converted oven, draws a rectangle as a new part,
+    makes it a drawer, confirms the category and saves: the two files beside the photo
+    say so, nothing else is written there, the item is converted again (catalog row,
+    asset) and the page shows the new card with its three parts."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="pip install playwright")
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for suffix in (".png", ".mask.png"):
+        shutil.copy(EXAMPLES / f"{OVEN}{suffix}", photos / f"{OVEN}{suffix}")
+    (photos / f"{OVEN}.json").write_text(json.dumps(PARSER_HINTS, indent=2))
+    out = tmp_path / "out"
+    fast = {"validate": False, "preview": False, "fidelity": False}
+    summary = run_convert(photos, out, ConvertSettings(generator="retrieval", **fast))
+    assert [r.status for r in summary.results] == ["ok"]
+    with Catalog(out, readonly=True) as cat:
+        row = cat.get(OVEN)
+    assert row.part_count == 2 and row.generator == "retrieval"
+    write_gallery(out)
+    original = np.asarray(Image.open(photos / f"{OVEN}.mask.png"))
+    photo_bytes = (photos / f"{OVEN}.png").read_bytes()
+    # the new part: a rectangle inside the lower door, in photo pixels
+    x0, y0, x1, y1 = 66, 150, 140, 176
+    with serving(out, editor_overrides=fast) as url, sync_api.sync_playwright() as pw:
+        browser = _launch_chromium(pw, tmp_path / "profile")
+        try:
+            page = browser.new_page()
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url + "index.html")
+            page.wait_for_selector("body[data-editor=on]", timeout=15000)
+            card = page.locator(f"section#{OVEN}")
+            card.locator("button.edit-mask").click()
+            editor = page.locator("#mask-editor[data-state=ready]")
+            editor.wait_for(timeout=15000)
+            # the opened mask: base and the parser's door, its motion preselected
+            assert page.locator("#mask-editor .me-part").count() == 2
+            assert page.locator("#mask-editor select.me-motion[data-part='2']").input_value() == (
+                "flap_bottom"
+            )
+            assert "90% sure" in page.locator("#mask-editor .me-part[data-part='2']").inner_text()
+            page.select_option("#mask-editor select.me-paint", label="new part (3)")
+            page.locator("#mask-editor button[data-tool=rect]").click()
+            box = page.locator("#mask-editor canvas.me-photo").bounding_box()
+
+            def screen(x: float, y: float) -> tuple[float, float]:
+                return box["x"] + x * box["width"] / 256, box["y"] + y * box["height"] / 256
+
+            page.mouse.move(*screen(x0, y0))
+            page.mouse.down()
+            page.mouse.move(*screen((x0 + x1) / 2, (y0 + y1) / 2), steps=4)
+            page.mouse.move(*screen(x1, y1), steps=4)
+            page.mouse.up()
+            part3 = page.locator("#mask-editor select.me-motion[data-part='3']")
+            part3.select_option("drawer")
+            assert "drawer (slides out)" in part3.inner_text()
+            page.locator("#mask-editor .me-category-src button.confirm").click()
+            page.screenshot(path=str(tmp_path / "editor.png"))
+            page.locator("#mask-editor button.save").click()
+            page.wait_for_selector(f"section#{OVEN}[data-edit-state=done]", timeout=120000)
+            assert page.locator("#mask-editor").count() == 0  # closed once converted
+            meta = page.locator(f"section#{OVEN} .meta").first.inner_text()
+            note = page.locator(f"section#{OVEN} .edit-note").inner_text()
+            if THREE.exists():  # the new card's own 3D view loads
+                page.wait_for_selector(f"section#{OVEN} .viewer[data-state=ready]", timeout=30000)
+            page.screenshot(path=str(tmp_path / "after.png"), full_page=True)
+            assert not errors, errors
+        finally:
+            browser.close()
+    assert "3 parts" in meta and "ok, 3 parts" in note, (meta, note)
+    # beside the photo: its mask and hints rewritten, nothing else, the photo untouched
+    assert sorted(p.name for p in photos.iterdir()) == sorted(
+        [f"{OVEN}.png", f"{OVEN}.mask.png", f"{OVEN}.json"]
+    )
+    assert (photos / f"{OVEN}.png").read_bytes() == photo_bytes
+    saved = Image.open(photos / f"{OVEN}.mask.png")
+    assert saved.mode == "L" and saved.size == (256, 256)
+    ids = np.asarray(saved)
+    assert sorted(np.unique(ids).tolist()) == [0, 1, 2, 3]
+    rows, cols = np.nonzero(ids == 3)
+    assert abs(rows.min() - y0) <= 1 and abs(rows.max() + 1 - y1) <= 1
+    assert abs(cols.min() - x0) <= 1 and abs(cols.max() + 1 - x1) <= 1
+    assert (ids == 3).sum() == (rows.max() - rows.min() + 1) * (cols.max() - cols.min() + 1)
+    assert np.array_equal(ids[ids != 3], original[ids != 3])  # the rest as it was
+    hints = json.loads((photos / f"{OVEN}.json").read_text())
+    assert hints == {
+        "category": "oven",  # confirmed: no longer the parser's
+        "height": 0.884,
+        "notes": "left of the sink",
+        "parts": {"2": {"motion": "flap_bottom"}, "3": {"motion": "drawer"}},
+        "parsed": {"by": "parser-test", "parts": {"2": 0.9}},  # the mask was edited
+    }
+    # converted again from those files: the catalog row and the asset
+    with Catalog(out, readonly=True) as cat:
+        new = cat.get(OVEN)
+    assert new.status == "ok" and new.part_count == 3 and new.generator == "retrieval"
+    assert new.source_hash == hash_files(
+        photos / f"{OVEN}.png", photos / f"{OVEN}.mask.png", photos / f"{OVEN}.json"
+    )
+    assert new.source_hash != row.source_hash
+    assert np.array_equal(np.asarray(Image.open(out / OVEN / "input.mask.png")), ids)
+    joints = json.loads((out / OVEN / "asset.json").read_text())["joints"]
+    assert len(joints) == 2

@@ -28,6 +28,12 @@ served over HTTP, on the loopback interface and with no other network:
 say how to serve it. The views load lazily (when their card scrolls into view) and
 at most four hold a WebGL context at once.
 
+A card of an asset converted from a photo has an "edit mask" button, which
+``web/editor.js`` enables when the page is served by ``pact gallery OUT --serve``: the
+mask editor (server side :mod:`asset_pipeline.gallery.editor`, routes
+:mod:`asset_pipeline.gallery.server`, which also holds :func:`gallery_server` and
+:func:`serving`; docs/gallery.md).
+
 :func:`screenshots` drives Debian's headless Chromium over the DevTools protocol (a
 pipe, no extra package) and waits for the page to say its 3D views have drawn;
 ``python -m asset_pipeline.gallery.page OUT --screenshot PNG [--query asset=ID&q=J:V]``
@@ -38,9 +44,7 @@ from __future__ import annotations
 
 import argparse
 import base64
-import contextlib
 import fcntl
-import functools
 import html
 import json
 import logging
@@ -51,12 +55,10 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -77,6 +79,8 @@ from asset_pipeline.catalog.registry import (
     records_from_asset_dir,
     repair_text,
 )
+from asset_pipeline.gallery.editor import MASK_PALETTE
+from asset_pipeline.gallery.server import gallery_server, serving
 from asset_pipeline.inputs.folder import IMAGE_SUFFIXES, MASK_SUFFIX
 from asset_pipeline.validate import ReportFormatError, read_report
 from generator.atomic_files import atomic_write_bytes
@@ -98,16 +102,6 @@ FIDELITY_FIELDS = (
 )
 #: Joint types that get a slider in the 3D view.
 SLIDER_JOINT_TYPES = ("prismatic", "revolute", "continuous")
-#: Mask colours by part id: 0 background (dark), 1 base (grey), 2.. movable parts.
-MASK_PALETTE = np.array(
-    [
-        (30, 30, 30), (170, 170, 170), (228, 26, 28), (55, 126, 184), (77, 175, 74),
-        (152, 78, 163), (255, 127, 0), (255, 255, 51), (166, 86, 40), (247, 129, 191),
-        (102, 194, 165), (252, 141, 98), (141, 160, 203), (231, 138, 195), (166, 216, 84),
-        (255, 217, 47), (229, 196, 148),
-    ],
-    dtype=np.uint8,
-)  # fmt: skip
 
 
 @dataclass
@@ -422,6 +416,44 @@ tr.fail td{color:#b0281a} .reason{color:#b0281a;font-weight:600}
 .viewer.focus .vtitle{display:block}
 .viewer.focus .joint{grid-template-columns:1fr 70px}
 .viewer.focus .joint input{grid-column:1/3;grid-row:2}
+header .editor-off{display:none;margin-top:8px;color:#fc9}
+header .editor-off:not(:empty){display:block}
+.edit-row{display:flex;gap:8px;align-items:center;margin:0 0 8px;font-size:12px;color:#666}
+.edit-row button{font-size:12px;padding:2px 10px;cursor:pointer}
+.edit-row button:disabled{cursor:default}
+.card[data-edit-state=failed] .edit-note{color:#b0281a}
+.card[data-edit-state=converting] .edit-note{color:#225}
+body.has-editor{overflow:hidden}
+#mask-editor{position:fixed;inset:0;z-index:200;display:flex;background:#1d2029;color:#222}
+#mask-editor .me-stage{flex:1;position:relative;overflow:hidden;display:flex;align-items:center;
+ justify-content:center;padding:12px}
+#mask-editor .me-wrap{position:relative;line-height:0;cursor:crosshair;touch-action:none;
+ box-shadow:0 0 0 1px #fff3}
+#mask-editor .me-wrap canvas,#mask-editor .me-wrap svg{position:absolute;inset:0;width:100%;height:100%}
+#mask-editor .me-wrap canvas.me-photo{position:static;display:block}
+#mask-editor .me-wrap canvas.me-mask{image-rendering:pixelated}
+#mask-editor .me-hint{position:absolute;left:12px;bottom:8px;color:#ccd;font-size:12px}
+#mask-editor .me-panel{flex:0 0 340px;background:#fff;overflow:auto;padding:12px 14px;
+ display:flex;flex-direction:column;gap:10px;font-size:13px}
+#mask-editor h3{margin:0;font-size:16px} #mask-editor .sub{color:#666;font-size:12px}
+#mask-editor fieldset{border:1px solid #dde;border-radius:6px;padding:6px 10px 8px;margin:0;min-width:0}
+#mask-editor legend{font-size:12px;color:#556;padding:0 4px}
+#mask-editor .me-tools{display:flex;flex-wrap:wrap;gap:6px;align-items:center}
+#mask-editor button{font-size:12px;padding:3px 10px;cursor:pointer}
+#mask-editor button.on{background:#2a5db0;color:#fff;border-color:#2a5db0}
+#mask-editor select{font-size:12px;max-width:100%}
+#mask-editor .me-part{display:grid;grid-template-columns:14px 1fr;gap:2px 8px;align-items:center;
+ padding:4px 0;border-bottom:1px solid #eef}
+#mask-editor .me-part .sw{width:14px;height:14px;border-radius:3px;border:1px solid #0003}
+#mask-editor .me-part select{grid-column:2;width:100%}
+#mask-editor .me-part .src,#mask-editor .src{grid-column:2;font-size:11px;color:#777}
+#mask-editor .src button{font-size:11px;padding:0 6px;margin-left:4px}
+#mask-editor .me-actions{display:flex;gap:8px;flex-wrap:wrap}
+#mask-editor .me-actions .save{background:#2a8a3a;color:#fff;border:0;padding:6px 14px;font-size:13px}
+#mask-editor .me-actions .save:disabled{opacity:.5;cursor:default}
+#mask-editor .me-panel>*{flex-shrink:0}
+#mask-editor .me-status{font-size:12px;min-height:1.4em;white-space:pre-wrap;overflow-wrap:anywhere}
+#mask-editor .me-status.error{color:#b0281a}
 """
 
 #: Runs on pages opened from the file system: browsers do not let such a page load the
@@ -432,6 +464,11 @@ if (location.protocol === 'file:') {
   var dir = decodeURIComponent(location.pathname.replace(/\\/[^\\/]*$/, '') || '/');
   var cmd = document.getElementById('serve-cmd');
   if (cmd) cmd.textContent = "python3 -m http.server -b 127.0.0.1 -d '" + dir + "' 8000";
+  var pact = document.getElementById('serve-pact');
+  if (pact) pact.textContent = "pact gallery '" + dir + "' --serve";
+  document.querySelectorAll('.edit-note').forEach(function (n) {
+    n.textContent = 'opened as a file: the mask editor needs the page served (see the top)';
+  });
   document.body.dataset.galleryReady = 'file';
   document.querySelectorAll('.viewer').forEach(function (v) {
     v.dataset.state = 'file';
@@ -604,6 +641,16 @@ def _viewer(e: _Entry, scene: str | None) -> str:
     )
 
 
+def _edit_row(asset_id: str) -> str:
+    """The mask editor's button (web/editor.js enables it when the server has the editor)."""
+    return (
+        f"<div class='edit-row'><button type='button' class='edit-mask' data-asset='{_e(asset_id)}'"
+        " disabled title='fix the part mask, the motions and the category, then convert again'>"
+        "edit mask</button> <span class='edit-note'>the mask editor needs "
+        "<code>pact gallery OUT --serve</code></span></div>"
+    )
+
+
 def _card(e: _Entry, imgs: dict[str, str | None], scene: str | None = None) -> str:
     r = e.record
     size = "-" if any(v is None for v in r.size) else " × ".join(f"{v:.2f}" for v in r.size) + " m"
@@ -636,6 +683,8 @@ def _card(e: _Entry, imgs: dict[str, str | None], scene: str | None = None) -> s
     figures.append(_figure(imgs["preview"], "preview: rest / open"))
     parts.append("<div class='body'><div class='info'>")
     parts.append("<div class='imgs'>" + "".join(figures) + "</div>")
+    if r.source_image:
+        parts.append(_edit_row(r.id))
     parts.append(_fidelity_line(e.fidelity, has_photo))
     parts.append("<div class='cols'><div>" + _joint_table(e.asset) + "</div><div>")
     parts.append(_checks_table(e.checks))
@@ -721,12 +770,16 @@ def write_gallery(out_dir: str | Path) -> Path:
 <style>{_CSS}</style>
 <script type="importmap">{importmap}</script>
 <script type="module" src="{WEB_DIR_NAME}/viewer.js"></script>
+<script type="module" src="{WEB_DIR_NAME}/editor.js"></script>
 </head>
 <body><header><h1>{len(entries)} asset{"" if len(entries) == 1 else "s"} in {_e(out.resolve().name)}</h1>
 <p>{counts["ok"]} ok · {counts["repaired"]} repaired · {counts["failed"]} failed{low_text} · from the {source} · {stamp}</p>
 <div class="serve">This page was opened as a file, and browsers do not let a local page load
 its 3D views. Serve the folder on this machine and open <b>http://127.0.0.1:8000/</b>:
-<code id="serve-cmd">python3 -m http.server -b 127.0.0.1 -d OUT 8000</code></div>
+<code id="serve-cmd">python3 -m http.server -b 127.0.0.1 -d OUT 8000</code>
+<br>The mask editor (the <b>edit mask</b> buttons) also needs the gallery's own server, which
+answers this machine only (127.0.0.1): <code id="serve-pact">pact gallery OUT --serve</code></div>
+<div class="editor-off" id="editor-off"></div>
 {no_three}</header>
 <main>
 {body}
@@ -738,50 +791,6 @@ its 3D views. Serve the folder on this machine and open <b>http://127.0.0.1:8000
     atomic_write_bytes(index, page.encode("utf-8"))
     log.info("wrote %s (%d assets)", index, len(entries))
     return index
-
-
-# --------------------------------------------------------------------------- serving
-
-
-class _Handler(SimpleHTTPRequestHandler):
-    """Static files of the folder; quiet; the MIME types the viewer needs."""
-
-    extensions_map = {
-        **SimpleHTTPRequestHandler.extensions_map,
-        ".js": "text/javascript",
-        ".json": "application/json",
-        ".glb": "model/gltf-binary",
-    }
-
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib's name
-        log.debug("%s " + format, self.address_string(), *args)
-
-
-def gallery_server(
-    out_dir: str | Path, port: int = 8000, host: str = "127.0.0.1"
-) -> ThreadingHTTPServer:
-    """An HTTP server of ``out_dir`` (not yet serving: call ``serve_forever``); port 0
-    picks a free one (``server.server_address[1]``). Binds the loopback interface
-    unless ``host`` says otherwise."""
-    out = Path(out_dir)
-    if not out.is_dir():
-        raise FileNotFoundError(f"{out}: no such output folder")
-    handler = functools.partial(_Handler, directory=str(out.resolve()))
-    return ThreadingHTTPServer((host, port), handler)
-
-
-@contextlib.contextmanager
-def serving(out_dir: str | Path, port: int = 0, host: str = "127.0.0.1") -> Iterator[str]:
-    """Serve ``out_dir`` from a background thread while the block runs; yields its URL."""
-    server = gallery_server(out_dir, port, host)
-    thread = threading.Thread(target=server.serve_forever, name="gallery-http", daemon=True)
-    thread.start()
-    try:
-        yield f"http://{host}:{server.server_address[1]}/"
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join(timeout=5)
 
 
 # --------------------------------------------------------------------------- screenshots

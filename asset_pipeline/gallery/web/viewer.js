@@ -15,7 +15,9 @@
 // sliders, as a person would; &view=photo looks through the photo's estimated camera. Every viewer tells its state in data-state
 // (idle, loading, ready, error); <body> gets data-gallery-ready="1" once the view
 // named by ?asset= (else every view in sight) has loaded and drawn, "error" when the
-// named one failed (scripts/gallery_screenshot.sh waits for it).
+// named one failed (scripts/gallery_screenshot.sh waits for it). A card that the mask
+// editor (editor.js) replaced after a re-conversion gets a new view
+// (`gallery-card-replacing` / `gallery-card-replaced` events on document).
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
@@ -161,9 +163,9 @@ class Viewer {
       for (const v of link.visuals) {
         const holder = fixed(new THREE.Group(), v.origin);
         links.get(link.name).add(holder);
-        jobs.push(
-          loader.loadAsync(new URL(v.url, sceneUrl).href).then((gltf) => holder.add(gltf.scene)),
-        );
+        const url = new URL(v.url, sceneUrl);
+        url.search = sceneUrl.search; // a re-converted card's version tag reaches its GLBs
+        jobs.push(loader.loadAsync(url.href).then((gltf) => holder.add(gltf.scene)));
       }
     }
     this.motions = new Map();
@@ -445,6 +447,26 @@ function main() {
     { rootMargin: '100px' },
   );
   viewers.forEach((v) => io.observe(v.el));
+  // The mask editor (editor.js) replaces a re-converted asset's card: drop the old view,
+  // give the new card its own.
+  document.addEventListener('gallery-card-replacing', (ev) => {
+    for (const el of ev.detail.old.querySelectorAll('.viewer')) {
+      const v = byElement.get(el);
+      if (!v) continue;
+      io.unobserve(el);
+      byElement.delete(el);
+      viewers.splice(viewers.indexOf(v), 1);
+      v.release(false);
+    }
+  });
+  document.addEventListener('gallery-card-replaced', (ev) => {
+    for (const el of ev.detail.card.querySelectorAll('.viewer[data-scene]')) {
+      const v = new Viewer(el);
+      viewers.push(v);
+      byElement.set(el, v);
+      io.observe(el);
+    }
+  });
   checkReady();
 }
 
