@@ -335,3 +335,27 @@ def test_added_bar_handle_is_one_closed_piece_of_the_visual():
     assert all(p.is_watertight and p.volume > 0 for p in pieces)
     bar = min(pieces, key=lambda p: p.volume)
     assert bar.bounds[1][0] > 0.3 + 0.02  # stands out of the drawer's front
+
+
+@pytest.mark.parametrize(
+    "motion", ["drawer", "door_left", "door_right", "flap_bottom", "flap_top", "lid"]
+)
+def test_the_layout_keeps_a_given_motion(motion):
+    """A part whose joint comes from its motion (a user's or the photo parser's word,
+    ``articulation.joint_of_motion``) keeps that motion through the layout: the hinge on
+    the named edge, opening outward."""
+    from generator.motions import motion_of
+    from generator.pact.model.articulation import joint_of_motion
+
+    if motion == "lid":  # a top-loader's lid lies on the top
+        lo, hi = np.array([-0.25, -0.4, 0.42]), np.array([0.25, 0.4, 0.5])
+    else:  # a front panel in the upper half of a cabinet
+        lo, hi = np.array([0.22, -0.45, 0.05]), np.array([0.3, 0.45, 0.45])
+    pj = joint_of_motion(motion, lo, hi)
+    part = Part("p_1", pj.semantic, _box(lo, hi), Joint(pj.type, pj.origin, pj.axis, 0.0, pj.upper))
+    laid = _layout([_base(), part])["p_1"]
+    assert laid.joint.type == pj.type
+    assert (
+        motion_of(Part(laid.name, laid.semantic, laid.primitives[0].to_mesh(), laid.joint))
+        == motion
+    )

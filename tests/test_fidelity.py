@@ -111,10 +111,10 @@ def test_report_and_catalog_carry_fidelity(tmp_path):
 def test_convert_records_fidelity_and_ls_filters_on_it(tmp_path):
     if not render_device_available():
         pytest.skip("no Vulkan render device (install Mesa lavapipe >= 24.3, see FIELD-NOTES)")
+    from PIL import Image
+
     from asset_pipeline.catalog.batch import ConvertSettings, run_convert
     from pact_cli.main import app
-
-    from PIL import Image
 
     images = tmp_path / "in"
     images.mkdir()

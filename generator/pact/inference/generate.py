@@ -57,6 +57,7 @@ from generator.pact.model.articulation import (
     apply_shape_prior,
     decode_joint,
     joint_from_shape,
+    joint_of_motion,
     match_oven_doors,
     pool_parts,
     pool_slots,
@@ -401,6 +402,7 @@ class PActGenerator:
         part_bounds = np.array([m.bounds for m in meshes.values()])
         obj_lo, obj_hi = part_bounds[:, 0].min(0), part_bounds[:, 1].max(0)
         shape_prior = self.shape_prior and hints.get("category") not in DOOR_HINGE
+        motions = given_motions(hints)  # slot -> the user's or the photo parser's motion
         read: dict[int, tuple[PartJoint, np.ndarray, np.ndarray]] = {}  # k -> joint, lo, hi
         for k in sorted(meshes):
             if k == 0:
@@ -410,6 +412,13 @@ class PActGenerator:
                 pj = joints[k]
             else:  # past the flow's slots (laid out from the mask): no head read it
                 pj = joint_from_shape(lo, hi, obj_lo, obj_hi)
+            if k in motions:  # how the part moves is given: type, hinge edge, direction
+                drawn = (pj.type, pj.semantic) if pj is not None else ("prismatic", "drawer")
+                pj = joint_of_motion(motions[k], lo, hi, pj)
+                if pj.type == "revolute" and (drawn[0] == "prismatic" or drawn[1] == "lid"):
+                    meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
+                read[k] = (pj, lo, hi)
+                continue
             if pj is None:
                 continue
             if shape_prior:
@@ -423,11 +432,14 @@ class PActGenerator:
                     # drawn as deep as a drawer, or as a lid reaching far back
                     meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
             read[k] = (pj, lo, hi)
-        if shape_prior and read:  # a stacked oven's doors all swing down
+        guessed = {k: v for k, v in read.items() if k not in motions}
+        if shape_prior and guessed:  # a stacked oven's doors all swing down
             matched = match_oven_doors(
-                [v[0] for v in read.values()], [v[1:] for v in read.values()], obj_lo, obj_hi
+                [v[0] for v in guessed.values()], [v[1:] for v in guessed.values()], obj_lo, obj_hi
             )
-            read = {k: (j, *v[1:]) for (k, v), j in zip(read.items(), matched, strict=True)}
+            read.update(
+                {k: (j, *v[1:]) for (k, v), j in zip(guessed.items(), matched, strict=True)}
+            )
         for k in sorted(meshes):
             if k == 0:
                 continue
@@ -435,7 +447,7 @@ class PActGenerator:
                 parts.append(Part(f"part_{k}", "drawer", meshes[k], Joint("fixed")))
                 continue
             pj, lo, hi = read[k]
-            if hints.get("category"):  # the user's category: how its doors hinge
+            if hints.get("category") and k not in motions:  # the category: how doors hinge
                 pj = apply_category_prior(pj, str(hints["category"]), lo, hi, obj_hi[0])
             pj = postprocess_joint(pj, lo, hi)
             if pj.type == "fixed":
@@ -508,6 +520,16 @@ class PActGenerator:
         """Teacher forcing: stage 2 on given part voxels (K, R, R, R) (slot 0 = base)."""
         obj = self.assemble(self.run(image, None, occupancy), hints)
         return fit_box_layout(obj) if self.box_layout else obj
+
+
+def given_motions(hints: dict[str, Any]) -> dict[int, str]:
+    """Slot -> motion of the parts whose motion the hints give (``hints["parts"]``, keyed by
+    mask id = slot + 1: docs/input-format.md)."""
+    out = {}
+    for key, entry in (hints.get("parts") or {}).items():
+        if isinstance(entry, dict) and entry.get("motion"):
+            out[int(key) - 1] = str(entry["motion"])
+    return out
 
 
 def with_visuals(

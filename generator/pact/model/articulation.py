@@ -31,6 +31,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from generator.motions import joint_for_motion
 from generator.pact.model.model_configs import register
 
 HEAD_JOINT_TYPES = ("fixed", "prismatic", "revolute")  # dataset joint_type index - 1
@@ -238,6 +239,39 @@ def decode_joint(out: ArticulationOutput, index: tuple[int, ...]) -> PartJoint:
         axis=out.axis[index].cpu().numpy().astype(float),
         lower=float(r[0]),
         upper=float(r[1]),
+        type_probs=probs,
+    )
+
+
+#: The head's semantic of each motion (generator.motions): a flap is a door hinged at an edge.
+MOTION_SEMANTIC = {
+    "drawer": "drawer",
+    "door_left": "door",
+    "door_right": "door",
+    "flap_bottom": "door",
+    "flap_top": "door",
+    "lid": "lid",
+}
+
+
+def joint_of_motion(
+    motion: str, lo: np.ndarray, hi: np.ndarray, read: PartJoint | None = None
+) -> PartJoint:
+    """The joint of a part with bounds ``lo``..``hi`` that moves as ``motion`` says (a
+    user's or the photo parser's word, :mod:`generator.motions`): its type, hinge edge and
+    direction from the motion; its range the head's (``read``) when the head read the
+    same type, else the motion's default."""
+    j = joint_for_motion(motion, lo, hi)
+    same = read is not None and read.type == j.type and read.upper > read.lower
+    probs = np.zeros(len(HEAD_JOINT_TYPES))
+    probs[HEAD_JOINT_TYPES.index(j.type)] = 1.0
+    return PartJoint(
+        type=j.type,
+        semantic=MOTION_SEMANTIC[motion],
+        origin=j.origin,
+        axis=j.axis,
+        lower=0.0,
+        upper=float(read.upper) if same else j.upper,
         type_probs=probs,
     )
 
