@@ -450,6 +450,27 @@ def _rigged(m: _Movable, unit: float) -> Part:
     return Part(p.name, p.semantic, mesh, joint, prims, handle, p.material)
 
 
+def rigged_panel(part: Part, outer: np.ndarray, unit: float = 1.0) -> Part:
+    """``part`` remade as a plain panel for its joint: the box of its mesh (in the mesh's
+    mean colour) as its geometry, its hinge or slide placed on that box and a bar handle
+    where its joint needs one, as :func:`fit_box_layout` rigs a generated part. For a part
+    whose motion was given and its own geometry does not fit (a retrieved drawer that is
+    a door in the photo: its handle would sit where no gripper pulls). ``outer`` (2, 3):
+    the object's bounds; ``unit``: units per metre."""
+    lo, hi = part.mesh.bounds
+    panel = trimesh.creation.box(hi - lo)
+    panel.apply_translation((lo + hi) / 2)
+    colours = getattr(part.mesh.visual, "vertex_colors", None)
+    colour = (
+        np.asarray(colours)[:, :4].mean(axis=0)
+        if colours is not None and len(colours)
+        else (180, 180, 180, 255)
+    )
+    panel.visual.vertex_colors = np.tile(np.asarray(colour, np.uint8), (len(panel.vertices), 1))
+    bare = Part(part.name, part.semantic, panel, part.joint, [], None, part.material)
+    return _rigged(_classify(bare, np.array([lo, hi]), np.asarray(outer, float)), unit)
+
+
 def _grip_axis(m: _Movable) -> int:
     """The bar's axis: along the hinge for a door, along the longer side of a drawer's face."""
     if m.hinge_axis is not None:

@@ -28,6 +28,15 @@ from generator.articulated import Joint, Part
 MOTIONS: tuple[str, ...] = ("drawer", "door_left", "door_right", "flap_bottom", "flap_top", "lid")
 #: The joint type of each motion.
 MOTION_JOINT = {m: ("prismatic" if m == "drawer" else "revolute") for m in MOTIONS}
+#: The semantic label of a part moving so (a flap is a door hinged at an edge).
+MOTION_SEMANTIC = {
+    "drawer": "drawer",
+    "door_left": "door",
+    "door_right": "door",
+    "flap_bottom": "door",
+    "flap_top": "door",
+    "lid": "lid",
+}
 #: The joint kinds the metrics compare (drawer; door on a vertical hinge; a part on a
 #: horizontal hinge), per motion.
 MOTION_KIND = {

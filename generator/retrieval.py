@@ -283,6 +283,62 @@ def scale_object(obj: ArticulatedObject, S: np.ndarray) -> ArticulatedObject:
     return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
 
 
+def mirrored_across_y(part: Part) -> Part:
+    """``part`` mirrored across the middle of its box along y (a left-hinged door made a
+    right-hinged one): mesh (winding flipped), primitives, handle and joint origin."""
+    lo, hi = part.mesh.bounds
+    c = 0.5 * (lo[1] + hi[1])
+    flip = np.diag([1.0, -1.0, 1.0, 1.0])
+    about = np.eye(4)
+    about[1, 3] = 2.0 * c
+    M = about @ flip  # y -> 2c - y
+    mesh = part.mesh.copy()
+    mesh.vertices = trimesh.transform_points(mesh.vertices, M)
+    mesh.faces = mesh.faces[:, ::-1]
+    prims = [Primitive(q.kind, q.size, M @ q.transform @ flip) for q in part.primitives]
+    handle = None
+    if part.handle is not None:
+        h = part.handle
+        handle = Handle(trimesh.transform_points([h.position], M)[0], flip[:3, :3] @ h.axis, h.kind)
+    joint = part.joint
+    if joint is not None:
+        joint = Joint(joint.type, trimesh.transform_points([joint.origin], M)[0], -(flip[:3, :3] @ joint.axis),
+                      joint.lower, joint.upper, joint.parent)  # fmt: skip
+    return Part(part.name, part.semantic, mesh, joint, prims, handle, part.material)
+
+
+def follow_motions(obj: ArticulatedObject, motions: dict[int, str]) -> ArticulatedObject:
+    """``obj`` with its ``t``-th movable part moving as ``motions[t]`` says (the user's or
+    the photo parser's word, :mod:`generator.motions`): a part already moving so is kept;
+    a door hinged on the other side is mirrored; any other is remade as a panel for the
+    motion's joint with a bar handle (:func:`generator.box_layout.rigged_panel`)."""
+    from generator.box_layout import rigged_panel
+    from generator.motions import MOTION_SEMANTIC, joint_for_motion, motion_of
+
+    if not motions:
+        return obj
+    movable = obj.movable_parts
+    outer = obj.bounds()
+    replaced = {}
+    for t, motion in motions.items():
+        part = movable[t]
+        have = motion_of(part)
+        if have == motion:
+            continue
+        lo, hi = part.mesh.bounds
+        if {have, motion} == {"door_left", "door_right"}:
+            new = mirrored_across_y(part)
+        else:
+            joint = joint_for_motion(motion, lo, hi, parent=part.joint.parent)
+            semantic = MOTION_SEMANTIC[motion]
+            new = rigged_panel(
+                Part(part.name, semantic, part.mesh, joint, [], None, part.material), outer
+            )
+        replaced[part.name] = new
+    parts = [replaced.get(p.name, p) for p in obj.parts]
+    return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
+
+
 def keep_parts(obj: ArticulatedObject, order: list[str]) -> ArticulatedObject:
     """Movable parts ``order`` (names, in that order, renamed per semantic) on the base.
 
@@ -387,8 +443,14 @@ class RetrievalGenerator:
         cat, seed = str(lib.categories[best]), int(lib.seeds[best])
         obj = sample_object(cat, seed, split=str(lib.splits[best]))
         movable = obj.movable_parts
-        order = [movable[j].name for j in match if 0 <= j < len(movable)]
-        obj = keep_parts(obj, order)
+        kept = [(i, int(j)) for i, j in enumerate(match) if 0 <= j < len(movable)]
+        obj = keep_parts(obj, [movable[j].name for _, j in kept])
+        # the motions the hints give, by mask id (query part i is mask id i + 2)
+        given = {
+            t: (hints.get("parts") or {}).get(str(i + 2), {}).get("motion")
+            for t, (i, _) in enumerate(kept)
+        }
+        obj = follow_motions(obj, {t: m for t, m in given.items() if m})
         # Aspect: query crop width/height against the library view's.
         alpha = hints.get("alpha")
         box = object_crop_box(image.shape, mask, alpha)

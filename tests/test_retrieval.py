@@ -120,3 +120,34 @@ def test_retrieve_picks_nearest_embedding_with_the_mask_part_count():
     assert list(match) == [1, 0]  # the library's layout is reversed
     best, _ = RetrievalGenerator(lib).retrieve(img, None)  # no mask: embedding alone
     assert best in (0, 2)
+
+
+def test_retrieved_parts_follow_the_given_motions():
+    """A procedural cabinet's parts made to move as given: a door hinged on the other side
+    is mirrored (its handle with it), a door given as a drawer becomes a panel that
+    slides, with a bar handle on its front."""
+    from generator.motions import motion_of
+    from generator.procedural import sample_object
+    from generator.retrieval import follow_motions
+
+    obj = next(
+        o for o in (sample_object("cabinet", s) for s in range(40))
+        if sum(p.semantic == "door" for p in o.movable_parts) >= 2
+    )  # fmt: skip
+    movable = obj.movable_parts
+    doors = [t for t, p in enumerate(movable) if p.semantic == "door"]
+    flipped = {"door_left": "door_right", "door_right": "door_left"}
+    first, second = doors[:2]
+    want = {first: flipped[motion_of(movable[first])], second: "drawer"}
+    out = follow_motions(obj, want)
+    moved = out.movable_parts
+    for t, m in want.items():
+        assert motion_of(moved[t]) == m
+    assert moved[first].handle is not None and moved[second].handle is not None
+    # the mirrored door's handle sits at its new free edge: opposite its hinge
+    hinge_y = moved[first].joint.origin[1]
+    assert abs(moved[first].handle.position[1] - hinge_y) > 0.5 * (moved[first].mesh.extents[1])
+    assert moved[second].primitives and moved[second].joint.type == "prismatic"
+    # untouched parts are the same objects
+    others = [t for t in range(len(movable)) if t not in want]
+    assert all(moved[t] is movable[t] for t in others)

@@ -31,7 +31,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from generator.motions import joint_for_motion
+from generator.motions import MOTION_SEMANTIC, joint_for_motion
 from generator.pact.model.model_configs import register
 
 HEAD_JOINT_TYPES = ("fixed", "prismatic", "revolute")  # dataset joint_type index - 1
@@ -241,17 +241,6 @@ def decode_joint(out: ArticulationOutput, index: tuple[int, ...]) -> PartJoint:
         upper=float(r[1]),
         type_probs=probs,
     )
-
-
-#: The head's semantic of each motion (generator.motions): a flap is a door hinged at an edge.
-MOTION_SEMANTIC = {
-    "drawer": "drawer",
-    "door_left": "door",
-    "door_right": "door",
-    "flap_bottom": "door",
-    "flap_top": "door",
-    "lid": "lid",
-}
 
 
 def joint_of_motion(
