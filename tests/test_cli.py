@@ -102,7 +102,7 @@ def test_convert_examples_end_to_end_then_ls_and_gallery(tmp_path):
         assert report["status"] in ("ok", "repaired")
     lines = [json.loads(x) for x in (tmp_path / "log.jsonl").read_text().splitlines()]
     assert sorted(x["id"] for x in lines) == names
-    stages = {"load", "generate", "texture", "build", "validate", "fidelity"}
+    stages = {"load", "parse", "generate", "texture", "build", "validate", "fidelity"}
     assert all(set(x["stage_seconds"]) == stages for x in lines)
     for name in names:  # the photo baked into every part, the asset scored against it
         assert (out / name / "camera.json").is_file()

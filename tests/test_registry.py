@@ -188,3 +188,32 @@ def test_a_real_sqlite_full_error_is_a_full_disk(tmp_path: Path) -> None:
         with pytest.raises(CatalogError, match=f"^{out}: .*: the disk is full") as e:
             cat.record_failure("cab_b", "x" * 100_000)
         assert "damaged" not in str(e.value)
+
+
+def test_a_version_2_catalog_is_migrated_keeping_its_rows(tmp_path: Path) -> None:
+    """A catalog written before the ``inputs`` column (schema 2) opens, keeps its rows
+    (their inputs empty) and takes the new column."""
+    conn = sqlite3.connect(tmp_path / "registry.sqlite")
+    conn.executescript(
+        "CREATE TABLE assets (id TEXT PRIMARY KEY, source_image TEXT, source_hash TEXT,"
+        " settings_hash TEXT, generator TEXT, generator_version TEXT,"
+        " category TEXT NOT NULL DEFAULT 'unknown', part_count INTEGER,"
+        " joint_types TEXT NOT NULL DEFAULT '', size_x REAL, size_y REAL, size_z REAL,"
+        " status TEXT NOT NULL, failure_reason TEXT, repairs TEXT NOT NULL DEFAULT '[]',"
+        " stage_seconds TEXT NOT NULL DEFAULT '{}', path TEXT, created_at TEXT NOT NULL,"
+        " warnings TEXT NOT NULL DEFAULT '[]', fidelity TEXT);"
+        "CREATE TABLE parts (asset_id TEXT NOT NULL, name TEXT NOT NULL, semantic TEXT,"
+        " joint_type TEXT, lower REAL, upper REAL, mass REAL, PRIMARY KEY (asset_id, name));"
+        "CREATE TABLE checks (asset_id TEXT NOT NULL, name TEXT NOT NULL, passed INTEGER NOT NULL,"
+        " value, tolerance, detail TEXT, PRIMARY KEY (asset_id, name));"
+        "INSERT INTO assets (id, category, status, created_at) VALUES ('old', 'oven', 'ok', 'x');"
+        "PRAGMA user_version = 2;"
+    )
+    conn.close()
+    with Catalog(tmp_path) as cat:
+        old = cat.get("old")
+        assert old.category == "oven" and old.inputs == {}
+        cat.upsert_asset(
+            AssetRecord(id="new", status="ok", inputs={"category": {"source": "user"}})
+        )
+        assert cat.get("new").inputs == {"category": {"source": "user"}}

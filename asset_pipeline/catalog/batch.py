@@ -50,6 +50,7 @@ Guarantees
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import fcntl
 import hashlib
@@ -75,13 +76,15 @@ from asset_pipeline.catalog.registry import (
 from asset_pipeline.catalog.workers import WorkerDied, WorkerPool
 from asset_pipeline.inputs.errors import InputError
 from asset_pipeline.inputs.folder import InputItem, SkippedFile, discover_inputs, load_input
+from asset_pipeline.inputs.mask import write_mask
+from asset_pipeline.inputs.parsing import SEGMENTERS, complete_input, given_sources
 from asset_pipeline.validate import ReportFormatError, read_report
 from generator.bundle import remove_bundle
 from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES
 
 log = logging.getLogger(__name__)
 
-STAGES = ("load", "generate", "texture", "build", "validate", "fidelity")
+STAGES = ("load", "parse", "generate", "texture", "build", "validate", "fidelity")
 GENERATORS = ("pact", "retrieval")
 STAGING = ".staging"
 PREVIOUS = ".previous"
@@ -116,6 +119,13 @@ class ConvertSettings:
     fidelity: bool = True
     #: Visual triangles per asset (``--visual-faces``; 0 keeps every triangle).
     visual_faces: int = DEFAULT_VISUAL_FACES
+    #: Read what a photo lacks (part mask, category, each part's motion) with the photo
+    #: parser (asset_pipeline.inputs.parsing); what the user gives always wins.
+    parse: bool = True
+    #: How a missing mask is made: "parser" or "sam2" (SAM2's automatic masks merged by the
+    #: parser; needs ``sam2_checkpoint``).
+    segmenter: str = "parser"
+    sam2_checkpoint: str | None = None
     #: Keep the generator's bundle (``object.json`` + ``parts/``) in the asset folder, so
     #: that ``pact build`` can rebuild it (``--keep-intermediate``); off, the folder holds
     #: the asset alone.
@@ -149,6 +159,8 @@ class ItemResult:
     id_note: str | None = None
     #: Doubts about the item that did not fail it (each naming the file).
     warnings: list[str] = field(default_factory=list)
+    #: Where its category, part mask and motions came from (parsing.InputSources.to_json).
+    inputs: dict[str, Any] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- generators
@@ -227,6 +239,16 @@ def convert_item(
         result.category = loaded.category
         result.stage_seconds["load"] = time.perf_counter() - t
 
+        if settings.parse:
+            t = enter("parse")
+            loaded, sources = parse_stage(loaded, settings)
+            result.warnings = list(loaded.warnings)
+            result.stage_seconds["parse"] = time.perf_counter() - t
+        else:
+            sources = given_sources(loaded)
+        result.inputs = sources.to_json()
+        result.category = loaded.category
+
         t = enter("generate")
         gen = load_generator(settings.generator)
         result.generator_version = str(getattr(gen, "version", "0"))
@@ -238,6 +260,7 @@ def convert_item(
         obj = gen.generate(loaded.image, loaded.mask, hints)
         obj.provenance.setdefault("source_image", str(item.image_path))
         obj.provenance["source_hash"] = item.input_hash
+        obj.provenance["inputs"] = result.inputs
         if obj.category in ("unknown", "") and loaded.category != "unknown":
             obj.category = loaded.category
         result.category = obj.category
@@ -253,6 +276,8 @@ def convert_item(
         shutil.copyfile(item.image_path, staging / f"input{item.image_path.suffix.lower()}")
         if item.mask_path is not None:
             shutil.copyfile(item.mask_path, staging / "input.mask.png")
+        elif loaded.mask is not None:  # the parser's mask: what the asset was made from
+            write_mask(loaded.mask, staging / "input.mask.png")
         build_asset(
             staging,
             height=loaded.height,
@@ -291,6 +316,48 @@ def convert_item(
         log.debug("item %s failed in %s:\n%s", item.name, stage, traceback.format_exc())
         shutil.rmtree(private, ignore_errors=True)
     return result
+
+
+_PARSER_CACHE: dict[str, Any] = {}
+
+
+def load_parser() -> Any:
+    """The photo parser with the shipped weights (cached per process)."""
+    if "parser" not in _PARSER_CACHE:
+        from generator.parser import PhotoParser
+
+        _PARSER_CACHE["parser"] = PhotoParser.default()
+    return _PARSER_CACHE["parser"]
+
+
+def load_segmenter(settings: ConvertSettings) -> Any:
+    """None for the parser's own masks; the SAM2 segmenter (cached per checkpoint)."""
+    if settings.segmenter == "parser":
+        return None
+    if settings.segmenter != "sam2":
+        raise ValueError(f"unknown segmenter {settings.segmenter!r}; choose one of {SEGMENTERS}")
+    if not settings.sam2_checkpoint:
+        raise ValueError("--segmenter sam2 needs --sam2-checkpoint FILE (docs/segmenters.md)")
+    key = f"sam2:{settings.sam2_checkpoint}"
+    if key not in _PARSER_CACHE:
+        from generator.parser.sam2_segmenter import Sam2Segmenter
+
+        _PARSER_CACHE[key] = Sam2Segmenter.from_checkpoint(settings.sam2_checkpoint)
+    return _PARSER_CACHE[key]
+
+
+def parse_stage(loaded: Any, settings: ConvertSettings) -> tuple[Any, Any]:
+    """The ``parse`` stage: what the photo lacks read by the photo parser
+    (:func:`asset_pipeline.inputs.parsing.complete_input`). A parser that cannot run
+    (its weights or SAM2 missing) leaves the item as the user gave it, with a warning."""
+    try:
+        parser, segmenter = load_parser(), load_segmenter(settings)
+    except (ImportError, OSError, ValueError, RuntimeError) as e:
+        log.debug("no photo parser:\n%s", traceback.format_exc())
+        note = f"{loaded.item.image_path}: not parsed (no photo parser: {type(e).__name__}: {e})"
+        loaded = dataclasses.replace(loaded, warnings=[*loaded.warnings, note])
+        return loaded, given_sources(loaded)
+    return complete_input(loaded, parser, segmenter)
 
 
 def photo_stage(
@@ -716,6 +783,7 @@ def _register(catalog: Catalog, out: Path, r: ItemResult, settings_hash: str) ->
         generator_version=r.generator_version,
         stage_seconds=r.stage_seconds,
         warnings=tuple(r.warnings),
+        inputs=r.inputs,
     )
     if r.path is not None:
         failed = r.status == "failed"

@@ -12,8 +12,10 @@ Tables (schema version :data:`SCHEMA_VERSION`, stored in ``PRAGMA user_version``
             ``repairs`` = JSON list, ``stage_seconds`` = JSON object), ``path`` (the
             asset folder, relative to the catalog's folder when inside it),
             ``created_at`` (UTC ISO-8601 time the row was written), ``warnings`` (JSON
-            list of doubts that did not fail the item) and ``fidelity`` (JSON object of
-            the asset's likeness to its photo, NULL when not measured).
+            list of doubts that did not fail the item), ``fidelity`` (JSON object of
+            the asset's likeness to its photo, NULL when not measured) and ``inputs``
+            (JSON object: where the category, the part mask and each part's motion
+            came from, the user or the photo parser with its confidence).
 ``parts``   per part: ``name``, ``semantic``, ``joint_type`` (NULL for the base),
             ``lower``, ``upper`` (metres or radians), ``mass`` (kg).
 ``checks``  per validation check: ``name``, ``passed`` (0/1), ``value`` and
@@ -61,13 +63,14 @@ from asset_pipeline.validate.report import (
 log = logging.getLogger(__name__)
 
 CATALOG_NAME = "registry.sqlite"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 #: SQL that takes a catalog from schema version k to k + 1 (applied in one transaction).
 _MIGRATIONS = {
     1: (
         "ALTER TABLE assets ADD COLUMN warnings TEXT NOT NULL DEFAULT '[]';"
         "ALTER TABLE assets ADD COLUMN fidelity TEXT;"
     ),
+    2: "ALTER TABLE assets ADD COLUMN inputs TEXT NOT NULL DEFAULT '{}';",
 }
 STATUSES = ("ok", "repaired", "failed")
 
@@ -92,7 +95,8 @@ CREATE TABLE IF NOT EXISTS assets (
     path              TEXT,
     created_at        TEXT NOT NULL,
     warnings          TEXT NOT NULL DEFAULT '[]',
-    fidelity          TEXT
+    fidelity          TEXT,
+    inputs            TEXT NOT NULL DEFAULT '{}'
 );
 CREATE INDEX IF NOT EXISTS assets_status ON assets (status);
 CREATE INDEX IF NOT EXISTS assets_category ON assets (category);
@@ -200,6 +204,10 @@ class AssetRecord:
     created_at: str | None = None
     warnings: tuple[str, ...] = ()
     fidelity: Mapping[str, Any] | None = None
+    #: Where the category, the part mask and each part's motion came from
+    #: (asset_pipeline.inputs.parsing.InputSources.to_json: the user or the photo parser,
+    #: with its confidence).
+    inputs: Mapping[str, Any] = field(default_factory=dict)
     #: Filled when read back with details (:meth:`Catalog.get`, ``query(details=True)``).
     parts: tuple[PartRecord, ...] = ()
     checks: tuple[CheckRecord, ...] = ()
@@ -450,6 +458,7 @@ class Catalog:
             record.created_at or _now(),
             json.dumps(list(record.warnings)),
             None if record.fidelity is None else json.dumps(jsonable(dict(record.fidelity))),
+            json.dumps(jsonable(dict(record.inputs))),
         )
         c = self.conn
         c.execute("BEGIN IMMEDIATE")
@@ -459,8 +468,8 @@ class Catalog:
             c.execute(
                 "INSERT OR REPLACE INTO assets (id, source_image, source_hash, settings_hash, generator,"
                 " generator_version, category, part_count, joint_types, size_x, size_y, size_z, status,"
-                " failure_reason, repairs, stage_seconds, path, created_at, warnings, fidelity)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                " failure_reason, repairs, stage_seconds, path, created_at, warnings, fidelity,"
+                " inputs) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 row,
             )
             c.executemany(
@@ -506,6 +515,7 @@ class Catalog:
         path: str | Path | None = None,
         checks: Iterable[CheckRecord] = (),
         warnings: Iterable[str] = (),
+        inputs: Mapping[str, Any] | None = None,
     ) -> None:
         """Record that building ``id`` failed with ``reason`` (replaces any earlier row)."""
         rec = AssetRecord(
@@ -521,6 +531,7 @@ class Catalog:
             stage_seconds=dict(stage_seconds or {}),
             path=None if path is None else str(path),
             warnings=tuple(warnings),
+            inputs=dict(inputs or {}),
         )
         self.upsert_asset(rec, (), checks)
 
@@ -539,7 +550,7 @@ class Catalog:
     _COLUMNS = (
         "id, status, source_image, source_hash, settings_hash, generator, generator_version,"
         " category, part_count, joint_types, size_x, size_y, size_z, failure_reason, repairs,"
-        " stage_seconds, path, created_at, warnings, fidelity"
+        " stage_seconds, path, created_at, warnings, fidelity, inputs"
     )
 
     @staticmethod
@@ -563,6 +574,7 @@ class Catalog:
             created_at=r[17],
             warnings=tuple(json.loads(r[18] or "[]")),
             fidelity=None if r[19] is None else json.loads(r[19]),
+            inputs=json.loads(r[20] or "{}"),
         )
 
     def _details(self, row: AssetRecord) -> AssetRecord:
@@ -749,6 +761,8 @@ def records_from_asset_dir(
     repairs = [] if report is None else report.repairs
     if "fidelity" not in provenance and report is not None:
         provenance["fidelity"] = report.fidelity
+    if "inputs" not in provenance:
+        provenance["inputs"] = asset.provenance.get("inputs", {})
     known = {f.name for f in fields(AssetRecord)}
     extra = sorted(set(provenance) - known)
     if extra:
@@ -812,6 +826,23 @@ def _size_text(size: tuple[float | None, ...]) -> str:
     return "x".join(f"{v:.2f}" for v in size)  # type: ignore[str-format]
 
 
+def source_text(source: Mapping[str, Any] | None) -> str:
+    """`` (parser 0.93)`` for a field the photo parser gave, ``""`` for the user's."""
+    if not source or source.get("source") != "parser":
+        return ""
+    c = source.get("confidence")
+    return " (parser)" if c is None else f" (parser {c:.2f})"
+
+
+def motions_text(row: AssetRecord) -> str:
+    """Each part's motion with where it came from: ``2 door_left (parser 0.88), 3 drawer``."""
+    parts = row.inputs.get("parts") or {}
+    return ", ".join(
+        f"{k} {v.get('motion', '?')}{source_text(v)}"
+        for k, v in sorted(parts.items(), key=lambda kv: int(kv[0]))
+    )
+
+
 def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table:
     """A rich table of assets for ``pact ls``."""
     t = Table(title=title, show_lines=False)
@@ -819,7 +850,7 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
     t.add_column("status")
     t.add_column("category")
     t.add_column("parts", justify="right")
-    t.add_column("joints")
+    t.add_column("motions (or joints)")
     t.add_column("size m (x*y*z)", justify="right")
     t.add_column("generator")
     t.add_column("fidelity", justify="right")
@@ -835,9 +866,9 @@ def format_table(rows: Iterable[AssetRecord], title: str | None = None) -> Table
         t.add_row(
             escape(r.id),
             f"[{style}]{r.status}[/{style}]" if style else r.status,
-            r.category,
+            r.category + source_text(r.inputs.get("category")),
             "-" if r.part_count is None else str(r.part_count),
-            r.joint_types or "-",
+            motions_text(r) or r.joint_types or "-",
             _size_text(r.size),
             gen,
             fidelity_text(r),

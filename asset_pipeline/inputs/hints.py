@@ -15,8 +15,9 @@ from asset_pipeline.inputs.mask import MAX_PART_ID
 from generator.motions import MOTIONS
 from generator.procedural import CATEGORIES as PROCEDURAL_CATEGORIES
 
-#: Categories a hint may name ("unknown" lets the generator decide).
-CATEGORIES = (*PROCEDURAL_CATEGORIES, "unknown")
+#: Categories a hint may name: the seven the project makes, "other" (something else: the
+#: photo parser says so), and "unknown" (let the parser or the generator decide).
+CATEGORIES = (*PROCEDURAL_CATEGORIES, "other", "unknown")
 
 HINT_KEYS = ("id", "category", "height", "seed", "notes", "parts", "parsed")
 #: Keys of one part's entry under ``parts``.
