@@ -156,6 +156,27 @@ def eval_gen(
 
 #: --collision values -> asset_pipeline.assets.build collision methods.
 COLLISION_OPTIONS = {"auto": "auto", "mesh": "voxel", "voxel": "voxel", "coacd": "coacd"}
+SEGMENTER_DEFAULT = "parser"
+SEGMENTER_HELP = (
+    "How the part mask of a photo without one is made: parser (the project's photo parser) "
+    "or sam2 (SAM2's automatic masks merged into parts by the parser, as in the PAct paper; "
+    "needs the sam2 extra and --sam2-checkpoint, docs/segmenters.md)."
+)
+SAM2_CHECKPOINT_HELP = "A SAM2 checkpoint file (with --segmenter sam2; docs/segmenters.md)."
+
+
+def check_segmenter(segmenter: str, checkpoint: Path | None) -> str:
+    from asset_pipeline.inputs.parsing import SEGMENTERS
+
+    if segmenter not in SEGMENTERS:
+        raise fail(f"--segmenter {segmenter!r}: choose one of {', '.join(SEGMENTERS)}")
+    if segmenter == "sam2" and checkpoint is None:
+        raise fail("--segmenter sam2 needs --sam2-checkpoint FILE (docs/segmenters.md)")
+    if checkpoint is not None and not checkpoint.is_file():
+        raise fail(f"{checkpoint}: no such SAM2 checkpoint file")
+    return segmenter
+
+
 VISUAL_FACES_HELP = (
     "Visual triangles per asset in all: its visual meshes are decimated to it (collisions "
     "and masses come from the full meshes); 0 keeps every triangle."
@@ -479,6 +500,66 @@ def gallery(
         server.server_close()
 
 
+@app.command("parse")
+@reports_errors
+def parse_photos(
+    images: Path = typer.Argument(..., help="A folder of photos, or one photo."),
+    segmenter: str = typer.Option(SEGMENTER_DEFAULT, help=SEGMENTER_HELP),
+    sam2_checkpoint: Path = typer.Option(None, help=SAM2_CHECKPOINT_HELP),
+    overwrite: bool = typer.Option(
+        False, help="Replace the part masks that are there with the parser's."
+    ),
+) -> None:
+    """Write the photo parser's part masks and hints beside the photos, for a person to check.
+
+    For each photo: without a part mask, <name>.mask.png (0 background, 1 base, 2.. parts)
+    and <name>.json with the category and each part's motion; with one, the category and
+    the motions its hints lack. The hints' 'parsed' record names what the parser wrote and
+    its confidence (pact convert reports those fields as the parser's); keys already in
+    the hints are kept. Then check them (the gallery's mask editor, or any editor) and run
+    pact convert.
+    """
+    from asset_pipeline.catalog.batch import ConvertSettings, load_parser, load_segmenter
+    from asset_pipeline.inputs.errors import InputError
+    from asset_pipeline.inputs.folder import discover_inputs, load_input
+    from asset_pipeline.inputs.parsing import write_parsed
+
+    settings = ConvertSettings(
+        segmenter=check_segmenter(segmenter, sam2_checkpoint),
+        sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint),
+    )
+    try:
+        listing = discover_inputs(images)
+    except InputError as e:
+        raise fail(str(e)) from e
+    parser, seg = load_parser(), load_segmenter(settings)
+    table = Table(title="pact parse")
+    for col in ("photo", "category", "parts (motion confidence)", "wrote"):
+        table.add_column(col)
+    bad = []
+    for item in listing:
+        try:
+            written = write_parsed(load_input(item), parser, seg, overwrite=overwrite)
+        except InputError as e:
+            bad.append(str(e))
+            table.add_row(escape(item.name), "-", "-", f"[red]failed[/red]: {escape(str(e))}")
+            continue
+        s = written.sources
+        cat = s.to_json()["category"]
+        parts = ", ".join(
+            f"{k} {m}" + (f" {src.confidence:.2f}" if src.confidence is not None else " (user)")
+            for k, (m, src) in sorted(s.parts.items())
+        )
+        wrote = ", ".join(p.name for p in (written.mask, written.hints) if p is not None) or "-"
+        label = cat.get("source", "none")
+        if "confidence" in cat:
+            label += f" {cat['confidence']:.2f}"
+        table.add_row(escape(item.name), escape(f"{label}"), escape(parts or "-"), escape(wrote))
+    wide_console().print(table)
+    if bad:
+        raise typer.Exit(1)
+
+
 @app.command()
 @reports_errors
 def convert(
@@ -532,6 +613,14 @@ def convert(
         help="Keep the generator's bundle (object.json, parts/) in each asset folder, for "
         "`pact build` to rebuild it.",
     ),
+    parse: bool = typer.Option(
+        True,
+        "--parser/--no-parser",
+        help="Read what a photo lacks (part mask, category, each part's motion) with the "
+        "photo parser; what the mask and hints files give always wins.",
+    ),
+    segmenter: str = typer.Option(SEGMENTER_DEFAULT, help=SEGMENTER_HELP),
+    sam2_checkpoint: Path = typer.Option(None, help=SAM2_CHECKPOINT_HELP),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -558,6 +647,9 @@ def convert(
         fidelity=fidelity,
         visual_faces=visual_faces,
         keep_intermediate=keep_intermediate,
+        parse=parse,
+        segmenter=check_segmenter(segmenter, sam2_checkpoint),
+        sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint.resolve()),
     )
     log_file = None
     if log_json is not None and str(log_json) != "-":

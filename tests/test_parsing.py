@@ -169,3 +169,37 @@ def test_convert_parses_a_bare_photo_and_records_where_each_field_came_from(tmp_
         assert row.category == "oven" and row.inputs == inputs
     r = CliRunner().invoke(app, ["ls", str(out)])
     assert "parser 0.95" in r.output and "flap_bottom" in r.output
+
+
+def test_pact_parse_writes_the_parsers_mask_and_hints_beside_the_photo(tmp_path, monkeypatch):
+    """pact parse: a bare photo gets <name>.mask.png and <name>.json (category, motions and
+    a 'parsed' record with the confidences); a photo with the user's mask and hints keeps
+    them and gets only the motions its hints lack; the hints load as valid input."""
+    from typer.testing import CliRunner
+
+    from asset_pipeline.catalog import batch
+    from pact_cli.main import app
+
+    monkeypatch.setitem(batch._PARSER_CACHE, "parser", FakeParser())
+    _photo(tmp_path, "bare")
+    _photo(tmp_path, "given")
+    user_mask = FakeParser()._mask((96, 128))
+    Image.fromarray(user_mask).save(tmp_path / "given.mask.png")
+    (tmp_path / "given.json").write_text(
+        json.dumps({"height": 0.9, "parts": {"2": {"motion": "door_left"}}})
+    )
+    r = CliRunner().invoke(app, ["parse", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    bare = json.loads((tmp_path / "bare.json").read_text())
+    assert bare["category"] == "oven" and bare["parts"]["3"] == {"motion": "drawer"}
+    assert bare["parsed"] == {"by": "fake-parser-1", "category": 0.95, "mask": 0.0,
+                              "parts": {"2": 0.9, "3": 0.8}}  # fmt: skip
+    assert (tmp_path / "bare.mask.png").is_file()
+    given = json.loads((tmp_path / "given.json").read_text())
+    assert given["height"] == 0.9 and given["parts"]["2"] == {"motion": "door_left"}
+    assert given["parts"]["3"] == {"motion": "door_right"}
+    assert given["parsed"] == {"by": "fake-parser-1", "category": 0.7, "parts": {"3": 0.6}}
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "given.mask.png")), user_mask)
+    for name in ("bare", "given"):  # valid input for pact convert, the parser's fields named
+        (item,) = discover_inputs(tmp_path / f"{name}.png")
+        assert given_sources(load_input(item)).category.source == "parser"

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -192,3 +193,66 @@ def given_sources(loaded: LoadedInput) -> InputSources:
             )
             sources.parts[int(key)] = (entry["motion"], src)
     return sources
+
+
+@dataclass
+class ParseWritten:
+    """What :func:`write_parsed` wrote for one photo (paths) and what it read."""
+
+    mask: Path | None
+    hints: Path | None
+    sources: InputSources
+
+
+def parsed_hints(hints: dict[str, Any], sources: InputSources) -> dict[str, Any]:
+    """``hints`` with a ``parsed`` record naming the fields the parser gave (with its
+    confidences), for a hints file a person checks before converting."""
+    out = {k: v for k, v in hints.items() if k != "parsed"}
+    record: dict[str, Any] = {}
+    by = None
+    if sources.category.source == "parser":
+        record["category"] = sources.category.confidence
+        by = sources.category.by or by
+    if sources.mask.source == "parser":
+        record["mask"] = sources.mask.confidence if sources.mask.confidence is not None else 0.0
+        by = by or sources.mask.by
+    parts = {str(k): s.confidence for k, (_, s) in sources.parts.items() if s.source == "parser"}
+    if parts:
+        record["parts"] = parts
+        by = by or next(s.by for _, s in sources.parts.values() if s.source == "parser")
+    if record:
+        record["by"] = by
+        out["parsed"] = {k: v for k, v in record.items() if v is not None}
+    return out
+
+
+def write_parsed(
+    loaded: LoadedInput, parser: Parser, segmenter: Segmenter | None = None, overwrite: bool = False
+) -> ParseWritten:
+    """``pact parse`` for one item: read what it lacks (:func:`complete_input`) and write
+    the parser's mask (``<name>.mask.png``) and hints (``<name>.json``, the user's keys
+    kept, a ``parsed`` record naming the parser's fields) beside the photo, for a person
+    to check before converting. A user's mask is never replaced unless ``overwrite``
+    (then the parser reads the photo afresh)."""
+    import json
+
+    from asset_pipeline.inputs.mask import write_mask
+    from generator.atomic_files import atomic_write_bytes
+
+    item = loaded.item
+    if overwrite and loaded.mask is not None:  # the parser reads the photo afresh
+        hints = {k: v for k, v in loaded.hints.items() if k not in ("parts", "parsed")}
+        loaded = dataclasses.replace(loaded, mask=None, hints=hints)
+    done, sources = complete_input(loaded, parser, segmenter)
+    photo = Path(item.image_path)
+    mask_path = hints_path = None
+    if sources.mask.source == "parser" and done.mask is not None:
+        mask_path = write_mask(
+            done.mask,
+            item.mask_path if item.mask_path else photo.with_name(photo.stem + ".mask.png"),
+        )
+    hints = parsed_hints(done.hints, sources)
+    if hints != loaded.hints:
+        hints_path = Path(item.hints_path) if item.hints_path else photo.with_suffix(".json")
+        atomic_write_bytes(hints_path, (json.dumps(hints, indent=2) + "\n").encode())
+    return ParseWritten(mask_path, hints_path, sources)
