@@ -62,6 +62,7 @@ from asset_pipeline.inputs.mask import (
     check_mask_edges,
     check_mask_matches_photo,
     clean_mask,
+    mask_png,
     read_mask,
 )
 from asset_pipeline.inputs.photo import read_image
@@ -234,13 +235,6 @@ def read_raw_hints(target: EditTarget) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise EditRefused(f"{target.hints_path}: hints must be a JSON object; fix it", 409)
     return data
-
-
-def mask_png(ids: np.ndarray) -> bytes:
-    """An 8-bit grey PNG of part ids."""
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(ids, dtype=np.uint8), "L").save(buf, format="PNG")
-    return buf.getvalue()
 
 
 def decode_mask(data: bytes, size: tuple[int, int], source: str) -> np.ndarray:

@@ -35,18 +35,23 @@ MAX_PART_ID = 16
 MASK_MIN_IOU = 0.5
 
 
-def write_mask(ids: np.ndarray, path: str | Path) -> Path:
-    """Write part ids (H, W) as a mask file: an 8-bit grey PNG, atomically (the one writer
-    of the format :func:`read_mask` reads)."""
+def mask_png(ids: np.ndarray) -> bytes:
+    """Part ids (H, W) encoded as a mask file: an 8-bit grey PNG (what :func:`read_mask`
+    reads)."""
     from io import BytesIO
 
     from PIL import Image
 
-    from generator.atomic_files import atomic_write_bytes
-
     buf = BytesIO()
     Image.fromarray(np.ascontiguousarray(ids, dtype=np.uint8), "L").save(buf, format="PNG")
-    atomic_write_bytes(Path(path), buf.getvalue())
+    return buf.getvalue()
+
+
+def write_mask(ids: np.ndarray, path: str | Path) -> Path:
+    """Write part ids (H, W) as a mask file, atomically (the one writer of the format)."""
+    from generator.atomic_files import atomic_write_bytes
+
+    atomic_write_bytes(Path(path), mask_png(ids))
     return Path(path)
 
 
