@@ -412,3 +412,15 @@ def test_realistic_sampling_leaves_sample_object_alone() -> None:
     assert realistic_object_id("oven", 4, "test") == "oven_q0000004"
     with pytest.raises(UnknownCategoryError):
         sample_realistic_object("sofa", 0)
+
+
+def test_realistic_thin_vent_grille_builds() -> None:
+    """An over-the-range microwave whose vent strip is too thin for slats still builds
+    (it failed with a degenerate box before)."""
+    from generator.procedural.realistic import sample_realistic_object
+    from generator.procedural.realistic.shapes import slots
+
+    assert slots(0.0, 0.5, 0.3, 0.29, 0.2, 10, True) == []
+    for seed in (89, 372):
+        obj = sample_realistic_object("microwave", seed)
+        assert obj.provenance["params"]["kind"] == "over_range" and len(obj.movable_parts) == 1

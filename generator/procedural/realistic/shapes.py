@@ -81,8 +81,11 @@ def keypad(
 def slots(
     y0: float, y1: float, z0: float, z1: float, x_face: float, n: int, vertical: bool
 ) -> list[Primitive]:
-    """``n`` thin proud slats (a vent grille) across y0..y1 x z0..z1."""
-    out = []
+    """``n`` thin proud slats (a vent grille) across y0..y1 x z0..z1 (none when the
+    rectangle is empty)."""
+    out: list[Primitive] = []
+    if y1 <= y0 or z1 <= z0:
+        return out
     if vertical:
         w = (y1 - y0) / n
         for y in row(y0, y1, n):
