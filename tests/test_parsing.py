@@ -203,3 +203,21 @@ def test_pact_parse_writes_the_parsers_mask_and_hints_beside_the_photo(tmp_path,
     for name in ("bare", "given"):  # valid input for pact convert, the parser's fields named
         (item,) = discover_inputs(tmp_path / f"{name}.png")
         assert given_sources(load_input(item)).category.source == "parser"
+
+
+def test_the_gallery_says_what_the_parser_read(tmp_path, monkeypatch):
+    from asset_pipeline.catalog import batch
+    from asset_pipeline.catalog.batch import ConvertSettings, run_convert
+    from asset_pipeline.gallery.page import write_gallery
+
+    images = tmp_path / "in"
+    images.mkdir()
+    shutil.copy(EXAMPLES / "oven_t0000001.png", images / "oven.png")
+    monkeypatch.setitem(batch._PARSER_CACHE, "parser", FakeParser())
+    out = tmp_path / "out"
+    settings = ConvertSettings(generator="retrieval", validate=False, preview=False,
+                               texture=False, fidelity=False)  # fmt: skip
+    run_convert(images, out, settings)
+    page = write_gallery(out).read_text()
+    assert "category oven (parser 0.95)" in page
+    assert "2: flap_bottom (parser 0.90)" in page and "read by the parser: check it" in page

@@ -78,6 +78,7 @@ from asset_pipeline.catalog.registry import (
     checks_from_report,
     records_from_asset_dir,
     repair_text,
+    source_text,
 )
 from asset_pipeline.gallery.editor import MASK_PALETTE
 from asset_pipeline.gallery.server import gallery_server, serving
@@ -371,6 +372,7 @@ main{padding:16px 24px;display:flex;flex-direction:column;gap:16px}
 .badge{font-size:12px;padding:2px 8px;border-radius:10px;color:#fff}
 .ok{background:#2a8a3a}.repaired{background:#c98a00}.failed{background:#c0392b}
 .lowfid{background:#d35400}
+.parsed{background:#7d3c98}
 .meta{color:#555;margin-bottom:8px}
 .body{display:flex;gap:20px;align-items:flex-start;flex-wrap:wrap}
 .info{flex:1 1 520px;min-width:0}
@@ -520,6 +522,25 @@ def _photo_figure(photo: str, mask: str) -> str:
     )
 
 
+def _inputs_line(inputs: Mapping[str, Any]) -> str:
+    """Where the part mask and each part's motion came from: the user or the photo parser
+    (with its confidence), the parser's words marked for a person to check."""
+    if not inputs:
+        return ""
+    mask = inputs.get("mask") or {}
+    items = [f"mask: {mask.get('source', 'none')}"]
+    items += [
+        f"{k}: {v.get('motion', '?')}{source_text(v)}"
+        for k, v in sorted((inputs.get("parts") or {}).items(), key=lambda kv: int(kv[0]))
+    ]
+    parsed = any(
+        (v or {}).get("source") == "parser"
+        for v in [inputs.get("category"), mask, *(inputs.get("parts") or {}).values()]
+    )
+    note = " <span class='badge parsed'>read by the parser: check it</span>" if parsed else ""
+    return f"<p class='meta inputs'>{_e(' · '.join(items))}{note}</p>"
+
+
 def _joint_table(asset: BuiltAsset | None) -> str:
     try:
         parts = [] if asset is None else asset.movable_parts()
@@ -655,7 +676,11 @@ def _card(e: _Entry, imgs: dict[str, str | None], scene: str | None = None) -> s
     r = e.record
     size = "-" if any(v is None for v in r.size) else " × ".join(f"{v:.2f}" for v in r.size) + " m"
     gen = (r.generator or "") + (f" {r.generator_version}" if r.generator_version else "")
-    facts = [f"category {r.category}", f"{r.part_count or '-'} parts", f"size {size}"]
+    facts = [
+        f"category {r.category}{source_text((r.inputs or {}).get('category'))}",
+        f"{r.part_count or '-'} parts",
+        f"size {size}",
+    ]
     if gen:
         facts.append(f"generator {gen}")
     if r.stage_seconds:
@@ -685,6 +710,7 @@ def _card(e: _Entry, imgs: dict[str, str | None], scene: str | None = None) -> s
     parts.append("<div class='imgs'>" + "".join(figures) + "</div>")
     if r.source_image:
         parts.append(_edit_row(r.id))
+    parts.append(_inputs_line(r.inputs or {}))
     parts.append(_fidelity_line(e.fidelity, has_photo))
     parts.append("<div class='cols'><div>" + _joint_table(e.asset) + "</div><div>")
     parts.append(_checks_table(e.checks))
