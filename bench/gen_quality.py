@@ -5,6 +5,7 @@
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--weights FOLDER]
+        [--parser [--parser-weights FOLDER]]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -75,12 +76,24 @@ def load_generator(name: str, weights: Path | None = None, one_sample: bool = Fa
     )
 
 
-def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool):  # noqa: ANN202
+def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool, parser=None):  # noqa: ANN001, ANN202
+    """The photo, mask and hints of image ``iid``; with ``parser``, what the photo lacks
+    (the mask when ``no_mask``, the category without ``category_hint``, every part's
+    motion) read by the photo parser as ``pact convert`` reads it
+    (``asset_pipeline.inputs.parsing.complete_input``)."""
     img = np.asarray(Image.open(split_dir / "images" / f"{iid}.png").convert("RGB"))
     mask = None if no_mask else np.asarray(Image.open(split_dir / "images" / f"{iid}.mask.png"))
     hints = json.loads((split_dir / "images" / f"{iid}.json").read_text())
     if not category_hint:
         hints.pop("category", None)
+    if parser is not None:
+        from asset_pipeline.inputs.folder import InputItem, LoadedInput
+        from asset_pipeline.inputs.parsing import complete_input
+
+        item = InputItem(iid, split_dir / "images" / f"{iid}.png", None, None, "")
+        loaded = LoadedInput(item=item, image=img, alpha=None, mask=mask, hints=hints)
+        done, _ = complete_input(loaded, parser)
+        mask, hints = done.mask, done.hints
     return img, mask, hints
 
 
@@ -137,6 +150,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         + ("-nomask" if args.no_mask else "")
         + ("-onesample" if one_sample else "")
         + ("-hint" if args.category_hint else "")
+        + ("-parser" if args.parser else "")
     )
     pred_dir = split_dir / tag
     seconds = []
@@ -151,8 +165,17 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         ids = [im["id"] for im in images]
     else:
         ids = write_test_split(split_dir, args.per_category)
+    parser = None
+    if args.parser:
+        from generator.parser import PhotoParser
+
+        parser = (
+            PhotoParser.default()
+            if args.parser_weights is None
+            else PhotoParser.load(args.parser_weights)
+        )
     for oid in ids:
-        img, mask, hints = _inputs(split_dir, oid, args.no_mask, args.category_hint)
+        img, mask, hints = _inputs(split_dir, oid, args.no_mask, args.category_hint, parser)
         t0 = time.perf_counter()
         obj = gen.generate(img, mask, hints)
         seconds.append(time.perf_counter() - t0)
@@ -166,6 +189,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
             "split_dir": str(split_dir),
             "mask": not args.no_mask,
             "category_hint": bool(args.category_hint),
+            "parser": bool(args.parser),
             "images": len(ids),
             "objects": len({im["object"] for im in images}),
             "seconds_per_image_median": statistics.median(seconds) if seconds else None,
@@ -249,6 +273,13 @@ def main() -> None:
     ap.add_argument("--styles", nargs="+", default=None, help="Real split: product and/or room.")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument("--category-hint", action="store_true")
+    ap.add_argument(
+        "--parser",
+        action="store_true",
+        help="read what each photo lacks with the photo parser, as pact convert does: the "
+        "mask with --no-mask, the category without --category-hint, every part's motion",
+    )
+    ap.add_argument("--parser-weights", type=Path, default=None, help="parser weights folder")
     ap.add_argument(
         "--one-sample-without-mask",
         action="store_true",

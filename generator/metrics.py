@@ -552,6 +552,31 @@ def joint_types_missed(pred: ArticulatedObject, gt: ArticulatedObject) -> tuple[
     return sum(max(0, n - have[t]) for t, n in want.items()), sum(want.values())
 
 
+def motions_match(pred: ArticulatedObject, gt: ArticulatedObject) -> tuple[bool, bool]:
+    """(kinds exact, motions exact): whether ``pred``'s movable parts have exactly ``gt``'s
+    joint kinds (drawer, vertical hinge, horizontal hinge: ``generator.motions.MOTION_KIND``)
+    as multisets, and exactly its motions (the hinge edge too: left/right, bottom/top,
+    lid). A part whose motion cannot be read counts as a wrong one."""
+    from generator.motions import MOTION_KIND, motion_of
+
+    def motions(obj: ArticulatedObject) -> Counter[str]:
+        out: Counter[str] = Counter()
+        for p in obj.parts:
+            if p.joint is None or not p.joint.movable:
+                continue
+            try:
+                out[motion_of(p)] += 1
+            except ValueError:
+                out["?"] += 1
+        return out
+
+    def kinds(c: Counter[str]) -> Counter[str]:
+        return Counter(MOTION_KIND.get(m, "?") for m in c.elements())
+
+    have, want = motions(pred), motions(gt)
+    return kinds(have) == kinds(want), have == want
+
+
 # --------------------------------------------------------------------------- folders
 
 
@@ -563,6 +588,7 @@ def score_row(pred: ArticulatedObject, gt: ArticulatedObject, **kwargs: Any) -> 
         for k, v in evaluate_pair(pred, gt, **kwargs).items()
     }
     row["joint_types_missed"], row["movable_joints"] = joint_types_missed(pred, gt)
+    row["kinds_exact"], row["motions_exact"] = motions_match(pred, gt)
     return row
 
 
@@ -576,6 +602,9 @@ def mean_scores(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     out["count"] = len(rows)
     for key in ("joint_types_missed", "movable_joints"):
         out[key] = int(sum(r.get(key) or 0 for r in rows))
+    for key in ("kinds_exact", "motions_exact"):  # shares of the rows
+        vals = [bool(r[key]) for r in rows if r.get(key) is not None]
+        out[key] = float(np.mean(vals)) if vals else None
     return out
 
 

@@ -317,3 +317,28 @@ def test_evaluate_dirs_and_table(tmp_path) -> None:
     text = console.export_text()
     assert "RS-dgIoU" in text and "cabinet" in text and "1 missing" in text
     assert "0 of 6" in text
+
+
+def test_motions_match_compares_kinds_and_hinge_edges_as_multisets():
+    """Two doors hinged left and a drawer against: the same (both exact), the doors hinged
+    right (kinds exact, motions not), one door a flap (neither), a part missing (neither)."""
+    import trimesh as tm
+
+    from generator.articulated import ArticulatedObject, Part
+    from generator.metrics import motions_match
+    from generator.motions import joint_for_motion
+
+    def obj(motions):
+        parts = [Part("base", "base", tm.creation.box((1, 1, 1)))]
+        for k, m in enumerate(motions):
+            lo, hi = np.array([0.45, -0.4 + 0.3 * k, -0.4]), np.array([0.5, -0.15 + 0.3 * k, 0.4])
+            box = tm.creation.box(hi - lo)
+            box.apply_translation((lo + hi) / 2)
+            parts.append(Part(f"p_{k}", "door", box, joint_for_motion(m, lo, hi)))
+        return ArticulatedObject(parts)
+
+    gt = obj(["door_left", "door_left", "drawer"])
+    assert motions_match(obj(["drawer", "door_left", "door_left"]), gt) == (True, True)
+    assert motions_match(obj(["door_right", "door_right", "drawer"]), gt) == (True, False)
+    assert motions_match(obj(["door_left", "flap_bottom", "drawer"]), gt) == (False, False)
+    assert motions_match(obj(["door_left", "drawer"]), gt) == (False, False)
