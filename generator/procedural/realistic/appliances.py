@@ -659,7 +659,7 @@ def _over_range_microwave(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         depth,
         height,
         col_fracs=[width - control_w, control_w],
-        row_fracs=[[vent_h, 1.0 - vent_h], [1.0]],
+        row_fracs=[[vent_h, height - vent_h], [1.0]],  # the vent strip vent_h metres high
     )
     base = Pieces(body)
     base.add(prims)

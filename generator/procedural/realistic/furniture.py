@@ -43,14 +43,14 @@ from generator.procedural.sampling import ParamSampler
 from generator.procedural.solids import EPS, box
 
 CABINET_KINDS = {
-    "kitchen_base": 0.20,
-    "wall": 0.13,
-    "tall": 0.12,
-    "dresser": 0.17,
-    "nightstand": 0.13,
-    "sideboard": 0.12,
-    "chest": 0.06,
-    "metal": 0.07,
+    "kitchen_base": 0.18,
+    "wall": 0.22,
+    "tall": 0.10,
+    "dresser": 0.14,
+    "nightstand": 0.11,
+    "sideboard": 0.10,
+    "chest": 0.09,
+    "metal": 0.06,
 }
 DESK_KINDS = {"pedestal": 0.30, "writing": 0.20, "end_table": 0.28, "island": 0.12, "coffee": 0.10}
 LEG_KINDS = ("square", "tapered", "turned", "round", "metal")
@@ -206,8 +206,9 @@ def kitchen_base(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
 
 
 def wall(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
-    """A wall (upper) cabinet, or a small shallow cabinet: doors, flaps, glazed doors."""
-    width = s.uniform("width", 0.3, 1.0)
+    """A wall (upper) cabinet, or a small shallow cabinet: doors, lift-up flaps (one, or a
+    row of two or three on a wide unit), drop-down flaps, glazed doors."""
+    width = s.uniform("width", 0.3, 1.3)
     height = s.uniform("height", 0.3, 0.92)
     depth = s.uniform("depth", 0.28, 0.37)
     body, front = _finish(s, painted_p=0.55)
@@ -219,7 +220,7 @@ def wall(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     layout = s.choice(
         "layout",
         ("door", "flap_top", "flap_bottom", "two_rows"),
-        p=(0.55, 0.3 if short_wide else 0.12, 0.05, 0.1 if height > 0.6 else 0.0),
+        p=(0.4, 0.6 if short_wide else 0.4, 0.05, 0.15 if height > 0.6 else 0.0),
     )
     if layout == "door":
         cells = [_door_cell(s, "cell", width)]
@@ -231,6 +232,8 @@ def wall(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     columns = [(1.0, cells)]
     if width > 0.8 and layout == "door" and s.flag("split_columns", 0.5):
         columns = [(1.0, [Cell("door_left")]), (1.0, [Cell("door_right")])]
+    if width > 0.75 and layout == "flap_top" and s.flag("flap_row", 0.5):
+        columns = [(1.0, [Cell("flap_top")]) for _ in range(2 if width < 1.1 else 3)]
     return _case_object(
         s,
         width=width,
@@ -261,8 +264,9 @@ def tall(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     elif layout == "doors_drawers":
         n = s.integer("n_drawers", 1, 3)
         cells = [Cell(door.kind, 3.0)] + _drawer_stack(n, 0.0, 2 if width > 0.8 else 1)
-    else:
-        cells = [Cell(door.kind, 1.2), Cell(door.kind, 1.0)]
+    else:  # an upper compartment (a lift-up flap or doors) over tall doors
+        upper = "flap_top" if s.flag("lift_up", 0.3) else door.kind
+        cells = [Cell(upper, 0.45 if upper == "flap_top" else 1.2), Cell(door.kind, 1.0)]
     columns = [(1.0, cells)]
     if width > 0.9 and s.flag("two_columns", 0.4):
         columns = [(1.0, [Cell("door_left")]), (1.0, cells[1:] or [Cell("door_right")])]
