@@ -305,9 +305,7 @@ def _range(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
             )
             pts = [(y, zc) for k, y in enumerate(ys) if k != mid]
             base.add(shapes.knobs(x1, pts, knob_r, 0.022), knob_tone)
-        else:  # a low backguard: knobs on the front of the hob instead (slide-in style)
-            pass
-        door_rows = col
+        door_rows = col  # (a low backguard carries no controls)
     # oven door(s)
     door_face = _door_look(s, body)
     glass = _glass(s)

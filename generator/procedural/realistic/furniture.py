@@ -27,7 +27,14 @@ import numpy as np
 
 from generator.articulated import Primitive
 from generator.procedural.assembly import PartSpec
-from generator.procedural.blocks import drawer, grid_carcass, hinged_panel, sample_handle
+from generator.procedural.blocks import (
+    Opening,
+    drawer,
+    grid_carcass,
+    hinged_panel,
+    inset_front,
+    sample_handle,
+)
 from generator.procedural.realistic import looks, shapes
 from generator.procedural.realistic.cases import (
     Carcass,
@@ -36,6 +43,7 @@ from generator.procedural.realistic.cases import (
     Tones,
     base_spec,
     build_case,
+    cell_fronts,
     sample_front_style,
     top_slab,
 )
@@ -472,8 +480,6 @@ def chest(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         )
         pieces += prims
         op = ops[0][0]
-        from generator.procedural.blocks import inset_front
-
         lo, hi = inset_front(op, style.tf, (style.gap,) * 4)
         movable.append(
             drawer(
@@ -660,18 +666,19 @@ def _apron_table(
     rng = s.child_rng()
     movable = []
     for op in (col[0] for col in ops):
-        specs, extra = _cell(s, op, style, rng)
-        movable += specs
+        movable += _apron_drawer(s, op, style, rng)
     return base_spec([(p, 0) for p in pieces], style.body, Tones(), "wood"), movable
 
 
-def _cell(s: ParamSampler, op, style: FrontStyle, rng) -> tuple[list[PartSpec], list]:  # noqa: ANN001
-    from generator.procedural.realistic.cases import cell_fronts
-
-    # inset: the front stays inside its housing, clear of the fronts beside it
-    return cell_fronts(
+def _apron_drawer(
+    s: ParamSampler, op: Opening, style: FrontStyle, rng: np.random.Generator
+) -> list[PartSpec]:
+    """The drawer of an apron or centre housing, inset: its front stays inside the housing,
+    clear of the fronts beside it."""
+    specs, _ = cell_fronts(
         s, "apron", Cell("drawer"), op, replace(style, overlay=False), rng, (False, False)
     )
+    return specs
 
 
 def writing(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
@@ -775,8 +782,7 @@ def pedestal(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
             cy=(y_inner_l + y_inner_r) / 2,
         )
         pieces += [(p, 0) for p in prims]
-        specs, _ = _cell(s, ops[0][0], style, rng)
-        movable += specs
+        movable += _apron_drawer(s, ops[0][0], style, rng)
     if not two:
         free = "right" if sides[0] == "left" else "left"
         y_end = width / 2 - ov_s if free == "right" else -width / 2 + ov_s
