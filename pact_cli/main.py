@@ -188,6 +188,22 @@ def check_collision(value: str) -> None:
         raise fail(f"--collision {value!r}: choose one of {', '.join(COLLISION_OPTIONS)}")
 
 
+FORMATS_DEFAULT = "urdf,mjcf,usd"
+FORMATS_HELP = (
+    "Model files to write, comma-separated: urdf (always: the pipeline reads it), mjcf "
+    "(model.xml), usd (model.usda, OpenUSD with UsdPhysics; docs/usd.md)."
+)
+
+
+def check_formats_option(value: str) -> tuple[str, ...]:
+    from asset_pipeline.assets.folder import check_formats
+
+    try:
+        return check_formats(value)
+    except ValueError as e:
+        raise fail(f"--formats {value!r}: {e}") from e
+
+
 def _build_one(
     bundle: Path,
     height: float | None,
@@ -195,11 +211,12 @@ def _build_one(
     repair: bool,
     collision: str,
     visual_faces: int,
+    formats: tuple[str, ...] = ("urdf", "mjcf", "usd"),
 ) -> tuple[str, str]:
     """Build (and validate) one bundle; return (status, detail)."""
     from asset_pipeline.assets.build import BuildOptions, build_asset
 
-    options = BuildOptions(collision=collision, visual_faces=visual_faces)
+    options = BuildOptions(collision=collision, visual_faces=visual_faces, formats=formats)
     result = build_asset(bundle, height=height, options=options)
     detail = f"{sum(result.pieces.values())} pieces, {result.seconds:.1f} s"
     if not validate:
@@ -233,8 +250,10 @@ def build(
     visual_faces: int = typer.Option(
         DEFAULT_VISUAL_FACES, min=0, help=VISUAL_FACES_HELP, show_default=True
     ),
+    formats: str = typer.Option(FORMATS_DEFAULT, help=FORMATS_HELP, show_default=True),
 ) -> None:
-    """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, asset.json.
+    """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, model.usda,
+    asset.json.
 
     Goes on past bad bundles, reports each at the end and exits 1 if any failed. The
     assets built from a folder of bundles are registered in that folder's catalog (so
@@ -248,6 +267,7 @@ def build(
     from generator.bundle import find_bundles, is_bundle
 
     check_collision(collision)
+    model_formats = check_formats_option(formats)
     bundles: list[Path] = []
     catalog_of: dict[Path, Path] = {}  # bundle -> the folder whose catalog lists it
     bad: list[tuple[str, str]] = []
@@ -270,6 +290,7 @@ def build(
         build = functools.partial(
             _build_one, height=height, validate=validate, repair=repair,
             collision=COLLISION_OPTIONS.get(collision, collision), visual_faces=visual_faces,
+            formats=model_formats,
         )  # fmt: skip
         _build_all(bundles, build, catalogs, catalog_of, bad)
     for where, why in bad:
@@ -327,9 +348,23 @@ def validate_cmd(
     repair: bool = typer.Option(True, "--repair/--no-repair", help="Repair what can be repaired."),
     preview: bool = typer.Option(True, "--preview/--no-preview", help="Render preview.png."),
     max_rounds: int = typer.Option(3, help="Repair rounds, each followed by a full re-check."),
+    engines: str = typer.Option(
+        "sapien",
+        help="Engines to run the behaviour checks in besides validation (sapien: the URDF, "
+        "mujoco: the MJCF, usd: the USD in Newton on CPU), e.g. sapien,mujoco,usd; each "
+        "engine's verdict per check and part goes into report.json's 'engines' "
+        "(docs/validation.md). sapien alone (the default) adds nothing.",
+    ),
 ) -> None:
     """Check built assets in SAPIEN, repair, write report.json; exit 1 if any fails."""
     from asset_pipeline.validate import validate_asset
+    from asset_pipeline.validate.engines import ENGINES
+
+    engine_list = [e.strip() for e in engines.split(",") if e.strip()]
+    unknown = [e for e in engine_list if e not in ENGINES]
+    if unknown:
+        raise fail(f"unknown engine(s) {unknown}; engines: {', '.join(ENGINES)}")
+    extra_engines = engine_list if engine_list != ["sapien"] else []
 
     assets: list[Path] = []
     for p in paths:
@@ -342,14 +377,23 @@ def validate_cmd(
     table = Table(title="pact validate")
     for col in ("asset", "status", "rounds", "repairs", "failed checks (value / tolerance)"):
         table.add_column(col)
+    for e in extra_engines:
+        table.add_column(e)
     failed = 0
     for a in assets:
         try:
-            report = validate_asset(a, repair=repair, preview=preview, max_rounds=max_rounds)
+            report = validate_asset(
+                a, repair=repair, preview=preview, max_rounds=max_rounds, engines=extra_engines
+            )
         except Exception as e:  # a broken asset never stops the batch
             failed += 1
             table.add_row(
-                escape(str(a)), "[red]failed[/red]", "-", "-", escape(f"{type(e).__name__}: {e}")
+                escape(str(a)),
+                "[red]failed[/red]",
+                "-",
+                "-",
+                escape(f"{type(e).__name__}: {e}"),
+                *["-"] * len(extra_engines),
             )
             continue
         failed += report.status == "failed"
@@ -363,9 +407,74 @@ def validate_cmd(
             str(len(report.rounds)),
             ", ".join(r.kind for r in report.repairs) or "-",
             escape(fails),
+            *[engine_verdict(report.engines, e) for e in extra_engines],
         )
     wide_console().print(table)
     if failed:
+        raise typer.Exit(1)
+
+
+def engine_verdict(section: dict | None, engine: str) -> str:
+    """One engine's verdict for the validate table: passed, or its failed checks."""
+    result = (section or {}).get(engine)
+    if result is None:
+        return "-"
+    if result.get("error"):
+        return f"[red]error[/red] {escape(result['error'][:60])}"
+    bad = [c for c in result["checks"] if not c.passed]
+    if not bad:
+        return f"[green]passed[/green] ({len(result['checks'])})"
+    return "[red]failed[/red] " + escape(", ".join(c.key for c in bad[:3]))
+
+
+@app.command("export")
+@reports_errors
+def export_cmd(
+    paths: list[Path] = typer.Argument(..., help="Built asset folders, or folders of them."),
+    format: str = typer.Option("usd", "--format", help="The format to write: usd or mjcf."),
+) -> None:
+    """Write another model file for assets built before (model.usda for --format usd),
+    reading each asset with load_asset; the files it has are left as they are."""
+    import time
+
+    from asset_pipeline.assets.folder import FORMAT_FILES, load_asset
+    from asset_pipeline.assets.layout import AssetFormatError
+
+    if format not in ("usd", "mjcf"):
+        raise fail(f"--format must be usd or mjcf, not {format!r}")
+    assets: list[Path] = []
+    for p in paths:
+        if (p / "model.urdf").is_file():
+            assets.append(p)
+        elif p.is_dir():
+            assets.extend(sorted(d for d in p.iterdir() if (d / "model.urdf").is_file()))
+    if not assets:
+        raise fail("no built asset (model.urdf) under " + ", ".join(map(str, paths)))
+    table = Table(title=f"pact export --format {format}")
+    for col in ("asset", "file", "seconds"):
+        table.add_column(col)
+    bad = 0
+    for a in assets:
+        t = time.perf_counter()
+        try:
+            asset = load_asset(a, metadata=(a / "asset.json").is_file())
+            if format == "usd":
+                from asset_pipeline.assets.usd import write_usd
+
+                path = write_usd(asset, a)
+            else:
+                from asset_pipeline.assets.mjcf import mjcf_string
+                from generator.atomic_files import atomic_write_bytes
+
+                path = a / FORMAT_FILES["mjcf"]
+                atomic_write_bytes(path, mjcf_string(asset).encode())
+        except (AssetFormatError, OSError, ValueError) as e:
+            bad += 1
+            table.add_row(escape(str(a)), f"[red]failed[/red] {escape(str(e))}", "-")
+            continue
+        table.add_row(escape(str(a)), escape(path.name), f"{time.perf_counter() - t:.2f}")
+    wide_console().print(table)
+    if bad:
         raise typer.Exit(1)
 
 
@@ -621,6 +730,7 @@ def convert(
     ),
     segmenter: str = typer.Option(SEGMENTER_DEFAULT, help=SEGMENTER_HELP),
     sam2_checkpoint: Path = typer.Option(None, help=SAM2_CHECKPOINT_HELP),
+    formats: str = typer.Option(FORMATS_DEFAULT, help=FORMATS_HELP, show_default=True),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
     import json
@@ -650,6 +760,7 @@ def convert(
         parse=parse,
         segmenter=check_segmenter(segmenter, sam2_checkpoint),
         sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint.resolve()),
+        formats=check_formats_option(formats),
     )
     log_file = None
     if log_json is not None and str(log_json) != "-":

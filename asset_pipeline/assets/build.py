@@ -28,7 +28,7 @@ from pathlib import Path
 import trimesh
 
 from asset_pipeline.assets.built_asset import BuiltAsset
-from asset_pipeline.assets.folder import save_asset
+from asset_pipeline.assets.folder import FORMATS, check_formats, save_asset
 from asset_pipeline.assets.layout import MJCF_NAME, URDF_NAME
 from asset_pipeline.assets.rig import PhysicsDefaults, build_rig
 from asset_pipeline.geometry.coacd_collision import CoacdFailed, CoacdParams, part_pieces
@@ -73,8 +73,12 @@ class BuildOptions:
     #: the visuals are decimated to it (:mod:`generator.mesh_repair.decimation`); collision
     #: pieces and masses come from the full meshes.
     visual_faces: int = DEFAULT_VISUAL_FACES
+    #: The model files written (``--formats``): ``urdf`` (always), ``mjcf``, ``usd``
+    #: (:data:`asset_pipeline.assets.folder.FORMATS`).
+    formats: tuple[str, ...] = FORMATS
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "formats", check_formats(self.formats))
         if self.collision not in COLLISION_METHODS:
             raise ValueError(
                 f"collision must be one of {COLLISION_METHODS}, got {self.collision!r}"
@@ -210,7 +214,7 @@ def build_asset(
     visuals = light_meshes({p.name: p.mesh for p in built.parts}, options.visual_faces)
     asset = build_rig(built, pieces, asset_id, options.physics, visuals=visuals)
     try:
-        save_asset(asset, root)
+        save_asset(asset, root, formats=options.formats)
     except OSError as e:
         raise BuildError(f"{e.filename or root}: cannot write: {e.strerror or e}") from e
     seconds = time.perf_counter() - t0

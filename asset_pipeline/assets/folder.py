@@ -4,6 +4,8 @@ A built asset folder (docs/architecture.md, "Built asset")::
 
     model.urdf                 links, joints, inertials, one <collision> per convex piece
     model.xml                  MJCF of the same model (written, never read)
+    model.usda                 OpenUSD stage with UsdPhysics of the same model (written,
+                               never read; asset_pipeline.assets.usd)
     asset.json                 what URDF cannot say: category, semantics, materials,
                                colours, handles, bounds, metric scale (schema pact.asset v1)
     visual/<part>.glb, .obj    visual meshes (the OBJ for MJCF)
@@ -40,10 +42,35 @@ from asset_pipeline.assets.layout import (
 from asset_pipeline.assets.mesh_files import obj_text, texture_image
 from asset_pipeline.assets.mjcf import mjcf_string
 from asset_pipeline.assets.urdf import read_urdf, urdf_string
+from asset_pipeline.assets.usd import USD_NAME
 from generator.atomic_files import atomic_write_bytes
 from generator.bundle import mesh_to_glb
 
 log = logging.getLogger(__name__)
+
+#: The file formats a built asset can be written in, and their files. The URDF is always
+#: written: it is what :func:`load_asset` reads back.
+FORMATS = ("urdf", "mjcf", "usd")
+FORMAT_FILES = {"urdf": URDF_NAME, "mjcf": MJCF_NAME, "usd": USD_NAME}
+
+
+def check_formats(formats: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """The formats of a ``--formats`` value (``"urdf,mjcf,usd"`` or a sequence), in
+    :data:`FORMATS` order; raises ValueError naming an unknown one or a missing ``urdf``."""
+    names = [
+        f.strip().lower() for f in (formats.split(",") if isinstance(formats, str) else formats)
+    ]
+    unknown = [f for f in names if f and f not in FORMATS]
+    if unknown:
+        raise ValueError(f"unknown format(s) {unknown}; formats: {', '.join(FORMATS)}")
+    if "urdf" not in names:
+        raise ValueError("the formats must include urdf (load_asset and validation read it)")
+    return tuple(f for f in FORMATS if f in names)
+
+
+def formats_in(folder: str | Path) -> tuple[str, ...]:
+    """The formats whose model file ``folder`` holds."""
+    return tuple(f for f in FORMATS if (Path(folder) / FORMAT_FILES[f]).is_file())
 
 
 def load_asset(folder: str | Path, *, metadata: bool = True) -> BuiltAsset:
@@ -84,14 +111,19 @@ def _write(path: Path, data: bytes | str) -> None:
     atomic_write_bytes(path, data.encode() if isinstance(data, str) else data)
 
 
-def save_asset(asset: BuiltAsset, folder: str | Path | None = None) -> Path:
+def save_asset(
+    asset: BuiltAsset, folder: str | Path | None = None, formats: tuple[str, ...] = FORMATS
+) -> Path:
     """Write ``asset`` into ``folder`` (default: ``asset.folder``) and set ``asset.folder``.
 
     Meshes held in memory (``Visual.mesh``, ``CollisionPiece.mesh``) are written; files
     under ``visual/`` and ``collision/`` that the asset no longer references are
-    removed; then ``model.urdf``, ``model.xml`` and, last, ``asset.json``. Raises
-    OSError when a file cannot be written. Returns the folder.
+    removed; then ``model.urdf``, ``model.xml`` (format ``mjcf``), ``model.usda``
+    (format ``usd``: :func:`asset_pipeline.assets.usd.write_usd`) and, last,
+    ``asset.json``. A model file of a format not asked for is removed (it would describe
+    an older build). Raises OSError when a file cannot be written. Returns the folder.
     """
+    formats = check_formats(formats)
     folder = Path(folder) if folder is not None else asset.folder
     if folder is None:
         raise ValueError(f"asset {asset.id!r}: no folder to save into")
@@ -124,7 +156,15 @@ def save_asset(asset: BuiltAsset, folder: str | Path | None = None) -> Path:
                 log.debug("removing stale %s", old)
                 old.unlink()
     _write(folder / URDF_NAME, urdf_string(asset))
-    _write(folder / MJCF_NAME, mjcf_string(asset))
+    if "mjcf" in formats:
+        _write(folder / MJCF_NAME, mjcf_string(asset))
+    if "usd" in formats:
+        from asset_pipeline.assets.usd import write_usd
+
+        write_usd(asset, folder)
+    for fmt in FORMATS:
+        if fmt not in formats:
+            (folder / FORMAT_FILES[fmt]).unlink(missing_ok=True)
     _write(folder / ASSET_JSON_NAME, json.dumps(asset_json_document(asset), indent=2) + "\n")
     asset.folder = folder
     return folder

@@ -130,11 +130,15 @@ class ConvertSettings:
     #: that ``pact build`` can rebuild it (``--keep-intermediate``); off, the folder holds
     #: the asset alone.
     keep_intermediate: bool = False
+    #: The model files written (``--formats``; asset_pipeline.assets.folder.FORMATS).
+    formats: tuple[str, ...] = ("urdf", "mjcf", "usd")
 
     def digest(self, generator_version: str = "") -> str:
         fields = asdict(self)
         if fields["collision"] == "auto":  # the default: digests of older runs still match
             del fields["collision"]
+        if tuple(fields["formats"]) == ("urdf", "mjcf", "usd"):  # the default, as above
+            del fields["formats"]
         text = json.dumps({**fields, "generator_version": generator_version}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -281,7 +285,11 @@ def convert_item(
         build_asset(
             staging,
             height=loaded.height,
-            options=BuildOptions(collision=settings.collision, visual_faces=settings.visual_faces),
+            options=BuildOptions(
+                collision=settings.collision,
+                visual_faces=settings.visual_faces,
+                formats=settings.formats,
+            ),
         )
         if not settings.keep_intermediate:
             remove_bundle(staging)

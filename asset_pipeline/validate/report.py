@@ -80,6 +80,10 @@ class Tolerances:
     pull_force: float = 40.0
     pull_fraction: float = 0.3
     pull_time: float = 2.0
+    #: Engine parity (:mod:`.engines`): a part pulled or pushed against a joint limit
+    #: passes it by at most this much (m, rad).
+    limit_linear: float = 0.005
+    limit_angular: float = math.radians(2.0)
     free_time: float = 1.5
     free_tilt: float = math.radians(2.0)
     free_displacement: float = 0.01
@@ -140,6 +144,9 @@ class Report:
     #: Likeness to the photo (asset_pipeline.photo.fidelity; docs/fidelity.md), None when not
     #: measured. Written by the convert's ``fidelity`` stage after validation.
     fidelity: dict[str, Any] | None = None
+    #: The behaviour checks in other engines (``pact validate --engines``;
+    #: :func:`asset_pipeline.validate.engines.engine_report`), None when not run.
+    engines: dict[str, Any] | None = None
 
     @property
     def ok(self) -> bool:
@@ -168,7 +175,18 @@ class Report:
             "tolerances": jsonable(asdict(self.tolerances)),
             "sim_options": jsonable(asdict(self.sim_options)),
             "fidelity": None if self.fidelity is None else jsonable(self.fidelity),
+            **({} if self.engines is None else {"engines": _engines_json(self.engines)}),
         }
+
+
+def _engines_json(engines: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for name, section in engines.items():
+        if isinstance(section, dict) and "checks" in section:
+            checks = [asdict(c) if isinstance(c, Check) else c for c in section["checks"]]
+            section = {**section, "checks": checks}
+        out[name] = jsonable(section)
+    return out
 
 
 def jsonable(x: Any) -> Any:
@@ -235,4 +253,5 @@ def read_report(asset_dir: str | Path) -> Report | None:
         tolerances=Tolerances(**_known(Tolerances, doc.get("tolerances"))),
         sim_options=SimOptions(**_known(SimOptions, doc.get("sim_options"))),
         fidelity=doc["fidelity"] if isinstance(doc.get("fidelity"), dict) else None,
+        engines=doc["engines"] if isinstance(doc.get("engines"), dict) else None,
     )

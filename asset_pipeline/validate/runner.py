@@ -16,13 +16,19 @@ import logging
 import os
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from asset_pipeline.assets.built_asset import BuiltAsset
-from asset_pipeline.assets.folder import load_asset, missing_files, save_asset
-from asset_pipeline.assets.layout import ASSET_JSON_NAME, MJCF_NAME, URDF_NAME, AssetFormatError
+from asset_pipeline.assets.folder import (
+    FORMAT_FILES,
+    formats_in,
+    load_asset,
+    missing_files,
+    save_asset,
+)
+from asset_pipeline.assets.layout import ASSET_JSON_NAME, URDF_NAME, AssetFormatError
 from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
 from asset_pipeline.validate.dynamic import dynamic_checks
 from asset_pipeline.validate.kinematic import kinematic_checks
@@ -95,6 +101,10 @@ def check_asset(
     if asset is None or not first.passed:
         return checks, asset
     checks += timed("static", lambda: static_checks(asset, tol))
+    if "usd" in formats_in(asset_dir):
+        from asset_pipeline.validate.usd_checks import usd_checks
+
+        checks += timed("static", lambda: usd_checks(asset))
     if any(not c.passed and c.name in STRUCTURAL for c in checks):
         return checks, asset
     checks += timed("load", lambda: load_checks(asset, tol, options))
@@ -122,10 +132,12 @@ def _working_copy(asset_dir: Path) -> Path:
     return work
 
 
-def _changed_files(asset: BuiltAsset) -> list[str]:
-    """Relative names of the files :func:`save_asset` rewrites for ``asset``, asset.json last."""
+def _changed_files(asset: BuiltAsset, formats: tuple[str, ...]) -> list[str]:
+    """Relative names of the files :func:`save_asset` rewrites for ``asset`` in ``formats``,
+    asset.json last."""
     pieces = [p.filename for k in asset.links for p in k.collisions if p.mesh is not None]
-    return [*pieces, URDF_NAME, MJCF_NAME, ASSET_JSON_NAME]
+    models = [FORMAT_FILES[f] for f in formats if f != "urdf"]
+    return [*pieces, URDF_NAME, *models, ASSET_JSON_NAME]
 
 
 def _copy_back(work: Path, asset_dir: Path, names: list[str]) -> None:
@@ -144,13 +156,17 @@ def validate_asset(
     tolerances: Tolerances = DEFAULT_TOLERANCES,
     options: SimOptions = DEFAULT_SIM_OPTIONS,
     write: bool = True,
+    engines: Sequence[str] = (),
 ) -> Report:
     """Check a built asset, repair what can be repaired, write ``report.json`` (+ preview).
 
     See the module docstring. Status: "ok" (passed without repairs), "repaired"
     (passed after repairs; the repaired files replace the old ones), "failed"
     (``reasons`` says why; the asset's files are left as they were). ``write=False``
-    changes nothing on disk.
+    changes nothing on disk. ``engines`` (of :data:`~asset_pipeline.validate.engines.ENGINES`)
+    runs the behaviour checks of :mod:`asset_pipeline.validate.engines` on the final asset in
+    each of them (``report.engines``, with the parity against SAPIEN); they do not change
+    the status.
     """
     asset_dir = Path(asset_dir)
     timings: dict[str, float] = {}
@@ -159,6 +175,7 @@ def validate_asset(
     reasons: list[str] = []
     changed: list[str] = []
     shutil.rmtree(asset_dir / REPAIR_DIR, ignore_errors=True)
+    formats = formats_in(asset_dir) or ("urdf",)
     work = asset_dir
     rnd = 0
     while True:
@@ -177,8 +194,8 @@ def validate_asset(
         if applied:
             if work is asset_dir:
                 work = _working_copy(asset_dir)
-            names = _changed_files(asset)
-            save_asset(asset, work)
+            names = _changed_files(asset, formats)
+            save_asset(asset, work, formats=formats)
             changed += [n for n in names if n not in changed]
             for r in applied:
                 r.round = rnd + 1
@@ -215,6 +232,13 @@ def validate_asset(
         tolerances=tolerances,
         sim_options=options,
     )
+    if engines and asset is not None and status != "failed":
+        from asset_pipeline.validate.engines import engine_report
+
+        t = time.perf_counter()
+        final = load_asset(asset_dir) if write or work is asset_dir else asset
+        report.engines = engine_report(final, list(engines), tolerances)
+        timings["engines"] = time.perf_counter() - t
     if preview and write:
         from asset_pipeline.validate.preview import render_preview
 

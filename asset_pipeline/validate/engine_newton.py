@@ -1,0 +1,209 @@
+"""The behaviour scenarios of :mod:`.engines` in Newton (on Warp's CPU device), on the
+asset's USD read by Newton's own importer (``ModelBuilder.add_usd``).
+
+Every scenario is one Newton *world* of a single model, so the whole plan is one
+simulation (Warp launches its kernels once per step for all worlds). Solver: XPBD
+(:data:`SOLVER_ITERATIONS` iterations, :data:`SUBSTEPS` substeps of each
+:data:`FRAME_DT` frame, contacts found once per frame), which holds joint limits as hard
+constraints. The USD's drives act as written (stiffness 0, the joint damping as drive
+damping); a free-base world ignores the stage's ``root_joint`` and gets a FREE joint and a
+floor, its parts held closed by stiffening those drives (``joint_target_ke``/``kd``). The
+pull is a world-frame wrench on the part (``State.body_f``), recomputed every substep.
+
+XPBD does not model joint friction (Newton's solver docs: ``joint_friction`` is not
+supported; only the MuJoCo solver has it, and that needs ``mujoco-warp``, whose MuJoCo
+pin conflicts with the project's ``mujoco==4.0.0``). What differs for that is in
+docs/validation.md ("Engine parity").
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from asset_pipeline.assets.built_asset import BuiltAsset
+from asset_pipeline.validate.engines import Scenario, Trajectory, hold_gains
+
+log = logging.getLogger(__name__)
+
+FRAME_DT = 1 / 120
+SUBSTEPS = 4
+SOLVER_ITERATIONS = 2
+
+
+def _quiet_warp():
+    import warp as wp
+
+    wp.config.quiet = True
+    return wp
+
+
+def usd_path(asset: BuiltAsset, scratch: Path) -> Path:
+    """The asset's ``model.usda`` (or ``.usdc``), or one written into ``scratch`` when the
+    folder has none (an asset built without the USD format)."""
+    from asset_pipeline.assets.usd import USD_NAME, usd_stage
+
+    for name in (USD_NAME, Path(USD_NAME).with_suffix(".usdc").name):
+        if asset.path_of(name).is_file():
+            return asset.path_of(name)
+    log.info("%s: no USD in the folder; exporting one for the check", asset.id)
+    tmp = scratch / USD_NAME
+    usd_stage(asset).GetRootLayer().Export(str(tmp))
+    return tmp
+
+
+def builders(path: Path):
+    """(fixed-base builder, free-base builder with a floor) of one USD file."""
+    import newton
+
+    fixed = newton.ModelBuilder()
+    fixed.add_usd(str(path), load_visual_shapes=False)
+    free = newton.ModelBuilder()
+    free.add_usd(
+        str(path), load_visual_shapes=False, ignore_paths=[".*/root_joint$"], floating=True
+    )
+    free.add_ground_plane()
+    return fixed, free
+
+
+def _labels_tail(labels) -> list[str]:
+    return [str(x).rsplit("/", 1)[-1] for x in labels]
+
+
+def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajectory]:
+    """All scenarios as worlds of one Newton model, stepped together."""
+    _quiet_warp()
+    import newton
+
+    from asset_pipeline.assets.usd import prim_name
+
+    with tempfile.TemporaryDirectory() as scratch:
+        path = usd_path(asset, Path(scratch))
+        fixed, free = builders(path)
+    builder = newton.ModelBuilder()
+    for s in scenarios:
+        builder.add_world(free if s.free_base else fixed)
+    model = builder.finalize(device="cpu")
+    W = len(scenarios)
+    joints = asset.movable_joints
+    J = len(joints)
+    jlabel = _labels_tail(model.joint_label)
+    jworld = model.joint_world.numpy()
+    q_start = model.joint_q_start.numpy()
+    qd_start = model.joint_qd_start.numpy()
+    blabel = _labels_tail(model.body_label)
+    bworld = model.body_world.numpy()
+    # per world: coordinate index of each movable joint, body of each link
+    qi = np.zeros((W, J), dtype=np.int64)
+    di = np.zeros((W, J), dtype=np.int64)
+    body = {}
+    for k, (name, w) in enumerate(zip(jlabel, jworld, strict=True)):
+        for n, j in enumerate(joints):
+            if name == prim_name(j.name):
+                qi[w, n], di[w, n] = q_start[k], qd_start[k]
+    for k, (name, w) in enumerate(zip(blabel, bworld, strict=True)):
+        body[(int(w), name)] = k
+    root = prim_name(asset.root)
+    joint_q = model.joint_q.numpy()
+    ke = model.joint_target_ke.numpy()
+    kd = model.joint_target_kd.numpy()
+    target = model.joint_target_q.numpy() if model.joint_target_q is not None else None
+    for w, s in enumerate(scenarios):
+        if s.free_base:
+            fq = q_start[
+                [k for k, (n, ww) in enumerate(zip(jlabel, jworld, strict=True)) if ww == w][0]
+            ]
+            joint_q[fq : fq + 7] = [0.0, 0.0, 0.002, 0.0, 0.0, 0.0, 1.0]
+        for n, j in enumerate(joints):
+            joint_q[qi[w, n]] = s.q0.get(j.name, j.lower)
+            if s.free_base:
+                ke[di[w, n]], kd[di[w, n]] = hold_gains(asset, j)
+                if target is not None:
+                    target[qi[w, n]] = j.lower
+    model.joint_q.assign(joint_q)
+    model.joint_target_ke.assign(ke)
+    model.joint_target_kd.assign(kd)
+    control = model.control()
+    if target is not None and control.joint_target_q is not None:
+        control.joint_target_q.assign(target)
+    solver = newton.solvers.SolverXPBD(model, iterations=SOLVER_ITERATIONS)
+    s0, s1 = model.state(), model.state()
+    newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
+    pipeline = newton.CollisionPipeline(model)
+    contacts = pipeline.contacts()
+    # pulls: (world, body, point (3,), force (3,)) in the body (link) frame
+    pulls = []
+    com = model.body_com.numpy()
+    for w, s in enumerate(scenarios):
+        if s.pull is not None:
+            b = body[(w, prim_name(s.pull.link))]
+            f = np.asarray(s.pull.direction) * s.pull.force
+            pulls.append((b, np.asarray(s.pull.point), f))
+    duration = max(s.duration for s in scenarios)
+    frames = round(duration / FRAME_DT)
+    dt = FRAME_DT / SUBSTEPS
+    body_f = np.zeros((model.body_count, 6), dtype=np.float32)
+    q_rec = [joint_q[qi].copy()]
+    times = [0.0]
+    finite = np.ones(W, dtype=bool)
+    for frame in range(frames):
+        pipeline.collide(s0, contacts)
+        for _ in range(SUBSTEPS):
+            s0.clear_forces()
+            if pulls:
+                bq = s0.body_q.numpy()
+                body_f[:] = 0.0
+                for b, p, f in pulls:
+                    R = _rot(bq[b, 3:7])
+                    fw = R @ f
+                    arm = R @ (p - com[b])
+                    body_f[b, :3] = fw
+                    body_f[b, 3:] = np.cross(arm, fw)
+                s0.body_f.assign(body_f)
+            solver.step(s0, s1, control, contacts, dt)
+            s0, s1 = s1, s0
+        newton.eval_ik(model, s0, s0.joint_q, s0.joint_qd)
+        q = s0.joint_q.numpy()[qi]
+        finite &= np.isfinite(q).all(axis=1)
+        times.append((frame + 1) * FRAME_DT)
+        q_rec.append(q)
+    q_all = np.asarray(q_rec)  # (n, W, J)
+    times_all = np.asarray(times)
+    bq = s0.body_q.numpy()
+    bqd = s0.body_qd.numpy()
+    out = []
+    for w, s in enumerate(scenarios):
+        keep = times_all <= s.duration + 1e-9
+        b = body[(w, root)]
+        T = np.eye(4)
+        T[:3, :3] = _rot(bq[b, 3:7])
+        T[:3, 3] = bq[b, :3]
+        out.append(
+            Trajectory(
+                times=times_all[keep],
+                q=q_all[keep, w, :].reshape(int(keep.sum()), J),
+                base_pose=T,
+                base_speed=float(np.linalg.norm(bqd[b, :3])) if s.free_base else 0.0,
+                base_angular_speed=float(np.linalg.norm(bqd[b, 3:])) if s.free_base else 0.0,
+                finite=bool(finite[w] and np.isfinite(T).all()),
+            )
+        )
+    return out
+
+
+def _rot(quat_xyzw: np.ndarray) -> np.ndarray:
+    x, y, z, w = (float(c) for c in quat_xyzw)
+    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
