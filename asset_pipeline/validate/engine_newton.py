@@ -12,8 +12,9 @@ pull is a world-frame wrench on the part (``State.body_f``), recomputed every su
 
 XPBD does not model joint friction (Newton's solver docs: ``joint_friction`` is not
 supported; only the MuJoCo solver has it, and that needs ``mujoco-warp``, whose MuJoCo
-pin conflicts with the project's ``mujoco==4.0.0``). What differs for that is in
-docs/validation.md ("Engine parity").
+pin conflicts with the project's ``mujoco==4.0.0``), so :class:`_StickSlip` applies the
+friction Newton's importer read from the USD through the solver's drives and joint
+forces (docs/validation.md, "Engine parity").
 """
 
 from __future__ import annotations
@@ -131,6 +132,13 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
     control = model.control()
     if target is not None and control.joint_target_q is not None:
         control.joint_target_q.assign(target)
+    friction = _StickSlip(
+        model.joint_friction.numpy()[di],
+        passive=np.array([[not s.free_base] * J for s in scenarios], dtype=bool).reshape(W, J),
+        linear=np.array([j.type == "prismatic" for j in joints], dtype=bool),
+        q=joint_q[qi],
+    )
+    joint_f = np.zeros(model.joint_dof_count, dtype=np.float32)
     solver = newton.solvers.SolverXPBD(model, iterations=SOLVER_ITERATIONS)
     s0, s1 = model.state(), model.state()
     newton.eval_fk(model, model.joint_q, model.joint_qd, s0)
@@ -152,6 +160,15 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
     times = [0.0]
     finite = np.ones(W, dtype=bool)
     for frame in range(frames):
+        if friction.any:
+            stick_ke, stick_q, force = friction.drive()
+            ke[di] = np.where(friction.passive, stick_ke, ke[di])
+            model.joint_target_ke.assign(ke)
+            if target is not None and control.joint_target_q is not None:
+                target[qi] = np.where(friction.passive, stick_q, target[qi])
+                control.joint_target_q.assign(target)
+            joint_f[di] = force
+            control.joint_f.assign(joint_f)
         pipeline.collide(s0, contacts)
         for _ in range(SUBSTEPS):
             s0.clear_forces()
@@ -169,6 +186,7 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
             s0, s1 = s1, s0
         newton.eval_ik(model, s0, s0.joint_q, s0.joint_qd)
         q = s0.joint_q.numpy()[qi]
+        friction.update(q, s0.joint_qd.numpy()[di])
         finite &= np.isfinite(q).all(axis=1)
         times.append((frame + 1) * FRAME_DT)
         q_rec.append(q)
@@ -194,6 +212,51 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
             )
         )
     return out
+
+
+class _StickSlip:
+    """Coulomb joint friction for a solver without it (XPBD), from the friction Newton read
+    from the USD (``newton:friction`` -> ``Model.joint_friction``, N or N m).
+
+    A sticking joint is held where it stuck by a stiff position drive (XPBD drives are
+    compliant constraints: stable at any stiffness) whose force is read back from its
+    stretch; once that force would exceed the friction the joint slips, and a slipping
+    joint feels the friction as a joint force against its motion until it stops or turns
+    back, when it sticks again. Arrays are (worlds, joints); ``passive`` marks the joints
+    it acts on (not the ones a drive holds)."""
+
+    #: Stretch of a sticking joint's drive at the full friction force (m or rad).
+    STRETCH_LINEAR = 1e-4
+    STRETCH_ANGULAR = 1e-3
+    #: Below this speed (m/s or rad/s) a slipping joint sticks again.
+    STICK_SPEED = 1e-3
+
+    def __init__(self, force, passive, linear, q):
+        self.force = np.where(passive, np.maximum(np.asarray(force, dtype=float), 0.0), 0.0)
+        self.passive = passive & (self.force > 0)
+        stretch = np.where(linear, self.STRETCH_LINEAR, self.STRETCH_ANGULAR)[None, :]
+        self.stiffness = self.force / stretch
+        self.stuck = self.passive.copy()
+        self.q_stick = np.asarray(q, dtype=float).copy()
+        self.qd = np.zeros_like(self.q_stick)
+        self.any = bool(self.passive.any())
+
+    def drive(self):
+        """(drive stiffness, drive target, joint force) for the next frame."""
+        ke = np.where(self.stuck, self.stiffness, 0.0)
+        f = np.where(self.passive & ~self.stuck, -self.force * np.sign(self.qd), 0.0)
+        return ke, self.q_stick, f
+
+    def update(self, q, qd) -> None:
+        """Stick or slip after a frame that ended at ``q``, ``qd``."""
+        held = self.stiffness * (self.q_stick - q)
+        slip = self.stuck & (np.abs(held) > self.force)
+        turned = (~self.stuck) & ((np.abs(qd) < self.STICK_SPEED) | (qd * self.qd < 0))
+        self.stuck = self.passive & ((self.stuck & ~slip) | turned)
+        self.q_stick = np.where(turned, q, self.q_stick)
+        self.qd = np.where(
+            slip & (np.abs(qd) < self.STICK_SPEED), np.sign(-held) * self.STICK_SPEED, qd
+        )
 
 
 def _rot(quat_xyzw: np.ndarray) -> np.ndarray:
