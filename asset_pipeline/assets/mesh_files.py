@@ -25,12 +25,19 @@ def obj_text(mesh: trimesh.Trimesh, uv: np.ndarray | None = None) -> str:
         return trimesh.exchange.obj.export_obj(
             mesh, include_normals=False, include_color=False, include_texture=False, header=None
         )
-    v = np.asarray(mesh.vertices, dtype=float)
-    f = np.asarray(mesh.faces, dtype=np.int64) + 1
-    # 7 significant digits: a micrometre on a metre-sized object, a 1e-7 texel
-    lines = [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in v]
-    lines += [f"vt {a:.7g} {b:.7g}" for a, b in np.asarray(uv, dtype=float)]
-    lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in f]
+    # positions and texture coordinates indexed apart, each written once: a textured
+    # mesh splits its vertices where the texture does, and many vertices share one
+    # palette texel (7 significant digits: a micrometre on a metre-sized object)
+    v, vi = np.unique(np.asarray(mesh.vertices, dtype=np.float32), axis=0, return_inverse=True)
+    t, ti = np.unique(np.asarray(uv, dtype=np.float32), axis=0, return_inverse=True)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    fv, ft = vi.reshape(-1)[faces] + 1, ti.reshape(-1)[faces] + 1
+    lines = [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in v.astype(float)]
+    lines += [f"vt {a:.7g} {b:.7g}" for a, b in t.astype(float)]
+    lines += [
+        f"f {a}/{d} {b}/{e} {c}/{g}"
+        for (a, b, c), (d, e, g) in zip(fv.tolist(), ft.tolist(), strict=True)
+    ]
     return "\n".join(lines) + "\n"
 
 
