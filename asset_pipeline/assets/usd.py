@@ -125,35 +125,52 @@ def _mesh_arrays(mesh: trimesh.Trimesh, T: np.ndarray) -> tuple[np.ndarray, np.n
 
 def _read_obj_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(vertices (n, 3), faces (m, 3), uv (n, 2) or None) of a visual OBJ written by
-    :func:`asset_pipeline.assets.mesh_files.obj_text` (one ``vt`` per ``v``)."""
-    v, vt, f = [], [], []
-    with open(path) as fh:
-        for line in fh:
-            if line.startswith("v "):
-                v.append(line.split()[1:4])
-            elif line.startswith("vt "):
-                vt.append(line.split()[1:3])
-            elif line.startswith("f "):
-                idx = [int(tok.split("/")[0]) - 1 for tok in line.split()[1:]]
-                f.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
-    verts = np.array(v, dtype=float).reshape(-1, 3)
-    uv = np.array(vt, dtype=float).reshape(-1, 2) if len(vt) == len(v) and vt else None
-    return verts, np.array(f, dtype=np.int64).reshape(-1, 3), uv
+    :func:`asset_pipeline.assets.mesh_files.obj_text` (triangles, one ``vt`` per ``v``)."""
+    lines = Path(path).read_text().splitlines()
+
+    def numbers(prefix: str, width: int, dtype: type) -> np.ndarray:
+        rows = [line[len(prefix) :] for line in lines if line.startswith(prefix)]
+        flat = " ".join(rows).replace("/", " ").split()
+        return np.array(flat, dtype=dtype).reshape(len(rows), -1)[:, :width]
+
+    verts = numbers("v ", 3, float)
+    vt = numbers("vt ", 2, float)
+    f = numbers("f ", 6, np.int64)
+    if f.shape[1] == 6:  # "f a/a b/b c/c": the vertex indices
+        f = f[:, ::2]
+    uv = vt if len(vt) == len(verts) and len(vt) else None
+    return verts, f - 1, uv
 
 
 def _visual_geometry(
     asset: BuiltAsset, visual: Visual
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(vertices in the link frame, faces, per-vertex uv or None) of a visual: the mesh
-    in memory (a build), else its OBJ (an asset read from disk)."""
+    in memory (a build), else its GLB, else its OBJ (an asset read from disk)."""
     if visual.mesh is not None:
         v, f = _mesh_arrays(visual.mesh, visual.origin)
         uv = getattr(visual.mesh.visual, "uv", None) if visual.texture else None
         uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, dtype=float)
         return v, f, uv
+    glb = _read_glb(asset.path_of(visual.filename))
+    if glb is not None:
+        v, f = _mesh_arrays(glb, visual.origin)
+        uv = getattr(glb.visual, "uv", None)
+        uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, dtype=float)
+        return v, f, uv if visual.texture else None
     v, f, uv = _read_obj_uv(asset.path_of(visual.obj_filename))
     v = v @ visual.origin[:3, :3].T + visual.origin[:3, 3]
     return v, f, uv if visual.texture else None
+
+
+def _read_glb(path: Path) -> trimesh.Trimesh | None:
+    """The one mesh of a visual GLB (binary: 2-3 times faster to read than its OBJ twin),
+    None when the file is not one mesh."""
+    if path.suffix.lower() != ".glb" or not path.is_file():
+        return None
+    loaded = trimesh.load(str(path), process=False)
+    meshes = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
+    return meshes[0] if len(meshes) == 1 and isinstance(meshes[0], trimesh.Trimesh) else None
 
 
 def _define_mesh(stage, path: str, verts: np.ndarray, faces: np.ndarray):
