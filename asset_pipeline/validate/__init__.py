@@ -9,6 +9,8 @@ static (the files and the model, no simulator; :mod:`.static`)
     ``asset_json``            asset.json, when present, reads
     ``single_root``, ``has_movable_part``, ``axis_unit``, ``limits_ordered``,
     ``mass_positive``, ``inertia_valid``, ``collision_hulls``, ``hinge_on_part``
+    ``usd_stage``, ``usd_matches_urdf`` (when the folder holds ``model.usda``: USD's own
+                              validators and physics parser; :mod:`.usd_checks`)
 load (SAPIEN on CPU; :mod:`.load`)
     ``sapien_load``, ``collision_shapes``, ``joint_matches_urdf``
 kinematic (PhysX contact generation between per-link probe bodies; :mod:`.kinematic`)
@@ -18,7 +20,9 @@ dynamic (PhysX CPU with the tasks' SimOptions; :mod:`.dynamic`)
     ``rest_drift``, ``finite``, ``drive_reach``, ``free_base_stable``
 
 :func:`validate_asset` (:mod:`.runner`) runs them, repairs (:mod:`.repair`), re-checks
-and writes ``report.json`` (:mod:`.report`, its one reader and writer).
+and writes ``report.json`` (:mod:`.report`, its one reader and writer). With ``engines``
+it also runs the behaviour checks of :mod:`.engines` in SAPIEN, MuJoCo (the MJCF,
+:mod:`.engine_mujoco`) and Newton (the USD, :mod:`.engine_newton`): ``report.engines``.
 """
 
 from asset_pipeline.validate.report import (

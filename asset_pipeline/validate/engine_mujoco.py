@@ -1,7 +1,7 @@
 """The behaviour scenarios of :mod:`.engines` in MuJoCo, on ``model.xml`` as written
 (its own timestep and contact settings: what a MuJoCo user gets). A free base gets a
-free joint and a floor plane (through ``mujoco.MjSpec``); the holding drives and the
-pull are applied forces (``qfrc_applied``, ``mj_applyFT``)."""
+free joint and a floor plane (through ``mujoco.MjSpec``) and its holding drives are joint
+springs and dampers; the pull is an applied force (``mj_applyFT``)."""
 
 from __future__ import annotations
 
@@ -40,7 +40,15 @@ def _run(asset: BuiltAsset, model, s: Scenario) -> Trajectory:
     for j, a in zip(joints, qadr, strict=True):
         data.qpos[a] = s.q0.get(j.name, j.lower)
     mujoco.mj_forward(model, data)
-    gains = [hold_gains(asset, j) for j in joints]
+    if s.free_base:
+        # the holding drives as joint springs and dampers: MuJoCo's Euler integrator
+        # treats damping implicitly (an applied PD force would blow up a light door)
+        for j, a, d in zip(joints, qadr, dadr, strict=True):
+            kp, kd = hold_gains(asset, j)
+            jid = model.joint(j.name).id
+            model.jnt_stiffness[jid] = kp
+            model.qpos_spring[a] = j.lower
+            model.dof_damping[d] = kd + j.physics.damping
     body = None
     if s.pull is not None:
         body = model.body(s.pull.link).id
@@ -52,9 +60,6 @@ def _run(asset: BuiltAsset, model, s: Scenario) -> Trajectory:
     finite = True
     for k in range(steps):
         data.qfrc_applied[:] = 0.0
-        if s.free_base:
-            for j, a, d, (kp, kd) in zip(joints, qadr, dadr, gains, strict=True):
-                data.qfrc_applied[d] = -kp * (data.qpos[a] - j.lower) - kd * data.qvel[d]
         if body is not None:
             R = data.xmat[body].reshape(3, 3)
             p = R @ point + data.xpos[body]
@@ -66,6 +71,9 @@ def _run(asset: BuiltAsset, model, s: Scenario) -> Trajectory:
             break
         times.append((k + 1) * dt)
         qs.append(q)
+    # MuJoCo resets a simulation that blew up (and warns): count that as non-finite
+    if int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number) > 0:
+        finite = False
     root = model.body(asset.root).id
     base = np.eye(4)
     base[:3, :3] = data.xmat[root].reshape(3, 3)
