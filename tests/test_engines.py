@@ -141,3 +141,20 @@ def test_docs_newton_example_opens_the_drawer(cabinets):
         exec(compile(code, str(DOCS), "exec"), scope)  # noqa: S102 - the docs' own example
     assert scope["opened"] >= 0.8 * scope["upper"], out.getvalue()
     assert "drawer open" in out.getvalue()
+
+
+def test_cli_validate_engines_reports_each_engine(tmp_path):
+    from typer.testing import CliRunner
+
+    from pact_cli.main import app
+
+    folder = write_box_cabinet(tmp_path / "cab", "revolute")
+    runner = CliRunner()
+    res = runner.invoke(
+        app, ["validate", str(folder), "--no-preview", "--engines", "sapien,mujoco"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "mujoco" in res.output and "passed" in res.output
+    assert json.loads((folder / "report.json").read_text())["engines"]["mujoco"]["passed"]
+    res = runner.invoke(app, ["validate", str(folder), "--engines", "bullet"])
+    assert res.exit_code != 0 and "bullet" in res.output
