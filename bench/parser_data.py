@@ -95,7 +95,12 @@ def main() -> None:
         )
         real = [f for f in real if not f.name.endswith(".mask.png")]
         rng = np.random.default_rng(0)
-        shown = [out / "images" / f"{it['id']}.png" for it in items[:36]]
+        # one photo per object (view k = object number mod views), up to 36
+        by_object: dict[str, list[dict]] = {}
+        for it in items:
+            by_object.setdefault(it["object"], []).append(it)
+        picks = [views[i % len(views)] for i, views in enumerate(by_object.values())][:36]
+        shown = [out / "images" / f"{it['id']}.png" for it in picks]
         real_shown = [real[i] for i in rng.permutation(len(real))[: len(shown)]] if real else []
         _montage(shown, real_shown, args.montage)
 
