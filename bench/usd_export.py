@@ -5,8 +5,8 @@
 
 For every built asset folder (``model.urdf``) under the given folders: the asset is read
 (``load_asset``) and its stage written (``asset_pipeline.assets.usd.write_usd``) into a
-temporary folder holding links to the asset's files, timed (the export alone, and the
-export of the same stage as ``.usdc`` for its size); then the stage is opened with USD's
+temporary folder holding links to the asset's files, timed (reading the asset and
+writing ``model.usdc``), and the same stage written as text (``.usda``) for its size; then the stage is opened with USD's
 own Python bindings, every ``UsdValidation`` validator is run and
 ``UsdPhysics.LoadUsdPhysicsFromRange`` is compared with the URDF
 (``asset_pipeline.validate.usd_checks``). With ``--engines`` the behaviour checks run in
@@ -88,13 +88,13 @@ def main() -> None:
             asset = load_asset(work, metadata=(work / "asset.json").is_file())
             path = write_usd(asset, work)
             seconds = time.perf_counter() - t
-            crate = write_usd(asset, work, "model.usdc")
+            text = write_usd(asset, work, "model.usda")
             checks = {c.name: c for c in usd_checks(asset)}
             row = {
                 "asset": folder.name,
                 "export_s": round(seconds, 3),
-                "usda_kb": round(path.stat().st_size / 1024, 1),
-                "usdc_kb": round(crate.stat().st_size / 1024, 1),
+                "usdc_kb": round(path.stat().st_size / 1024, 1),
+                "usda_kb": round(text.stat().st_size / 1024, 1),
                 "asset_kb": round(
                     sum(f.stat().st_size for f in folder.rglob("*") if f.is_file()) / 1024, 1
                 ),
@@ -125,6 +125,7 @@ def main() -> None:
         "usda_kb_median": statistics.median(r["usda_kb"] for r in rows) if rows else None,
         "usda_kb_max": max((r["usda_kb"] for r in rows), default=None),
         "usdc_kb_median": statistics.median(r["usdc_kb"] for r in rows) if rows else None,
+        "usdc_kb_max": max((r["usdc_kb"] for r in rows), default=None),
         "asset_kb_median": statistics.median(r["asset_kb"] for r in rows) if rows else None,
         "check_agreement_with_sapien": {
             e: round(a / n, 4) if n else None for e, (a, n) in agree.items()

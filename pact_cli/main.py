@@ -191,7 +191,7 @@ def check_collision(value: str) -> None:
 FORMATS_DEFAULT = "urdf,mjcf,usd"
 FORMATS_HELP = (
     "Model files to write, comma-separated: urdf (always: the pipeline reads it), mjcf "
-    "(model.xml), usd (model.usda, OpenUSD with UsdPhysics; docs/usd.md)."
+    "(model.xml), usd (model.usdc, OpenUSD with UsdPhysics; docs/usd.md)."
 )
 
 
@@ -252,7 +252,7 @@ def build(
     ),
     formats: str = typer.Option(FORMATS_DEFAULT, help=FORMATS_HELP, show_default=True),
 ) -> None:
-    """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, model.usda,
+    """Build bundles into sim assets: collision/*.obj, model.urdf, model.xml, model.usdc,
     asset.json.
 
     Goes on past bad bundles, reports each at the end and exits 1 if any failed. The
@@ -433,7 +433,7 @@ def export_cmd(
     paths: list[Path] = typer.Argument(..., help="Built asset folders, or folders of them."),
     format: str = typer.Option("usd", "--format", help="The format to write: usd or mjcf."),
 ) -> None:
-    """Write another model file for assets built before (model.usda for --format usd),
+    """Write another model file for assets built before (model.usdc for --format usd),
     reading each asset with load_asset; the files it has are left as they are."""
     import time
 

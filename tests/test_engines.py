@@ -132,9 +132,9 @@ def test_newton_drawer_slides_stops_and_door_swings(cabinets):
 def test_docs_newton_example_opens_the_drawer(cabinets):
     text = DOCS.read_text()
     code = re.search(r"## Opening a drawer in Newton.*?```python\n(.*?)```", text, re.S).group(1)
-    path = cabinets["prismatic"].path_of("model.usda")
-    assert "out/examples/cabinet_t0000001/model.usda" in code
-    code = code.replace("out/examples/cabinet_t0000001/model.usda", str(path))
+    path = cabinets["prismatic"].path_of("model.usdc")
+    assert "out/examples/cabinet_t0000001/model.usdc" in code
+    code = code.replace("out/examples/cabinet_t0000001/model.usdc", str(path))
     out = io.StringIO()
     scope: dict = {}
     with redirect_stdout(out):

@@ -1,4 +1,4 @@
-"""model.usda: written for every kind of asset, checked with USD's own tools (the stage
+"""model.usdc: written for every kind of asset, checked with USD's own tools (the stage
 opens, USD's validators report nothing, USD's physics parser reads back the URDF)."""
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _independent_readback(folder: Path) -> None:
     """Compare the USD with the URDF using pxr and the XML alone (not the project's reader)."""
     import xml.etree.ElementTree as ET
 
-    stage = Usd.Stage.Open(str(folder / "model.usda"))
+    stage = Usd.Stage.Open(str(folder / "model.usdc"))
     assert UsdGeom.GetStageUpAxis(stage) == "Z" and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     root = stage.GetDefaultPrim()
     assert root.HasAPI(UsdPhysics.ArticulationRootAPI)
@@ -82,7 +82,7 @@ def test_procedural_asset_usd_validates_and_reads_back_like_the_urdf(tmp_path):
     result = build_asset(save_bundle(obj, tmp_path / "cabinet"))
     folder = result.directory
     _assert_good_usd(folder)
-    stage = Usd.Stage.Open(str(folder / "model.usda"))
+    stage = Usd.Stage.Open(str(folder / "model.usdc"))
     # the visuals carry the photo/procedural texture through UsdPreviewSurface, the image
     # referenced next to the USD (visual/<link>.png, the MJCF's): no third copy
     textures = []
@@ -136,7 +136,7 @@ def test_formats_choose_the_files_and_export_adds_the_usd(tmp_path):
     obj = sample_object("oven", 0)
     folder = save_bundle(obj, tmp_path / "oven")
     build_asset(folder, options=BuildOptions(formats=("urdf", "mjcf")))
-    assert (folder / "model.xml").is_file() and not (folder / "model.usda").exists()
+    assert (folder / "model.xml").is_file() and not (folder / "model.usdc").exists()
     with pytest.raises(ValueError, match="urdf"):
         BuildOptions(formats=("usd",))
     res = CliRunner().invoke(app, ["export", str(tmp_path), "--format", "usd"])
@@ -144,13 +144,13 @@ def test_formats_choose_the_files_and_export_adds_the_usd(tmp_path):
     _assert_good_usd(folder)
     # a build without it removes the USD of an older build
     build_asset(folder, options=BuildOptions(formats=("urdf",)))
-    assert not (folder / "model.usda").exists() and not (folder / "model.xml").exists()
+    assert not (folder / "model.usdc").exists() and not (folder / "model.xml").exists()
 
 
 def test_validators_and_readback_find_a_broken_stage(tmp_path):
     folder = write_two_part_cabinet(tmp_path / "cab", "cab", status=None)
     asset = load_asset(folder)
-    stage = Usd.Stage.Open(str(folder / "model.usda"))
+    stage = Usd.Stage.Open(str(folder / "model.usdc"))
     assert usd_validation_errors(stage) == []
     assert usd_urdf_differences(asset, read_usd_physics(stage)) == []
     # a joint to a body that does not exist, and an articulation nested in another
@@ -161,7 +161,7 @@ def test_validators_and_readback_find_a_broken_stage(tmp_path):
     assert any("PhysicsJointChecker" in e for e in errors), errors
     assert any("ArticulationChecker" in e for e in errors), errors
     # the physics parser sees a changed limit and a lost collider
-    stage = Usd.Stage.Open(str(folder / "model.usda"))
+    stage = Usd.Stage.Open(str(folder / "model.usdc"))
     UsdPhysics.PrismaticJoint(
         stage.GetPrimAtPath("/cab/joints/joint_drawer_0")
     ).GetUpperLimitAttr().Set(0.5)
@@ -170,7 +170,7 @@ def test_validators_and_readback_find_a_broken_stage(tmp_path):
     assert any("joint_drawer_0: limits" in d for d in diffs), diffs
     assert any(d.startswith("base: 0 colliders") for d in diffs), diffs
     # and validation reports it when the USD on disk is broken
-    stage.GetRootLayer().Export(str(folder / "model.usda"))
+    stage.GetRootLayer().Export(str(folder / "model.usdc"))
     from asset_pipeline.validate import check_asset
 
     checks, _ = check_asset(folder)

@@ -4,7 +4,7 @@ A built asset folder (docs/architecture.md, "Built asset")::
 
     model.urdf                 links, joints, inertials, one <collision> per convex piece
     model.xml                  MJCF of the same model (written, never read)
-    model.usda                 OpenUSD stage with UsdPhysics of the same model (written,
+    model.usdc                 OpenUSD stage with UsdPhysics of the same model (written,
                                never read; asset_pipeline.assets.usd)
     asset.json                 what URDF cannot say: category, semantics, materials,
                                colours, handles, bounds, metric scale (schema pact.asset v1)
@@ -118,7 +118,7 @@ def save_asset(
 
     Meshes held in memory (``Visual.mesh``, ``CollisionPiece.mesh``) are written; files
     under ``visual/`` and ``collision/`` that the asset no longer references are
-    removed; then ``model.urdf``, ``model.xml`` (format ``mjcf``), ``model.usda``
+    removed; then ``model.urdf``, ``model.xml`` (format ``mjcf``), ``model.usdc``
     (format ``usd``: :func:`asset_pipeline.assets.usd.write_usd`) and, last,
     ``asset.json``. A model file of a format not asked for is removed (it would describe
     an older build). Raises OSError when a file cannot be written. Returns the folder.

@@ -1,4 +1,4 @@
-"""``model.usda``: the one writer of a built asset's OpenUSD stage with UsdPhysics.
+"""``model.usdc``: the one writer of a built asset's OpenUSD stage with UsdPhysics.
 
 :func:`usd_stage` makes the stage of a :class:`~asset_pipeline.assets.built_asset.BuiltAsset`
 in memory, :func:`write_usd` writes it next to ``model.urdf`` (called by
@@ -23,6 +23,9 @@ The stage (docs/usd.md)::
 Units: metres (``metersPerUnit`` 1), kilograms (``kilogramsPerUnit`` 1), Z up; USD's
 angular quantities are in degrees. The stage's meshes are inline, and the texture is
 the visual's ``visual/<link>.png`` (the one the MJCF maps), referenced, never copied.
+One crate file (``.usdc``): on the bundled examples the same stage as text (``.usda``) is
+3.6 times larger (2.8 MB against 0.76 MB, most of it the 60000 visual triangles), and
+``usdcat model.usdc`` prints the text when a person wants to read it.
 
 Joint physics, for the readers that exist: every movable joint has a DriveAPI (force
 drive, stiffness 0, damping = the joint's damping, max force = its effort, target = its
@@ -52,7 +55,7 @@ from asset_pipeline.assets.mesh_files import read_obj
 log = logging.getLogger(__name__)
 
 #: File name of the USD stage in a built asset folder.
-USD_NAME = "model.usda"
+USD_NAME = "model.usdc"
 GRAVITY = 9.81
 #: Friction material of every collider: SimOptions' (static, dynamic, restitution), the
 #: one SAPIEN validation and the tasks load the asset with.

@@ -9,7 +9,7 @@ static (the files and the model, no simulator; :mod:`.static`)
     ``asset_json``            asset.json, when present, reads
     ``single_root``, ``has_movable_part``, ``axis_unit``, ``limits_ordered``,
     ``mass_positive``, ``inertia_valid``, ``collision_hulls``, ``hinge_on_part``
-    ``usd_stage``, ``usd_matches_urdf`` (when the folder holds ``model.usda``: USD's own
+    ``usd_stage``, ``usd_matches_urdf`` (when the folder holds ``model.usdc``: USD's own
                               validators and physics parser; :mod:`.usd_checks`)
 load (SAPIEN on CPU; :mod:`.load`)
     ``sapien_load``, ``collision_shapes``, ``joint_matches_urdf``

@@ -45,11 +45,11 @@ def _quiet_warp():
 
 
 def usd_path(asset: BuiltAsset, scratch: Path) -> Path:
-    """The asset's ``model.usda`` (or ``.usdc``), or one written into ``scratch`` when the
+    """The asset's ``model.usdc`` (or ``.usda``), or one written into ``scratch`` when the
     folder has none (an asset built without the USD format)."""
     from asset_pipeline.assets.usd import USD_NAME, usd_stage
 
-    for name in (USD_NAME, Path(USD_NAME).with_suffix(".usdc").name):
+    for name in (USD_NAME, Path(USD_NAME).with_suffix(".usda").name):
         if asset.path_of(name).is_file():
             return asset.path_of(name)
     log.info("%s: no USD in the folder; exporting one for the check", asset.id)

@@ -44,7 +44,7 @@ log = logging.getLogger(__name__)
 
 #: The engines, by the name ``pact validate --engines`` takes, and the file each reads.
 ENGINES = ("sapien", "mujoco", "usd")
-ENGINE_FILES = {"sapien": "model.urdf", "mujoco": "model.xml", "usd": "model.usda"}
+ENGINE_FILES = {"sapien": "model.urdf", "mujoco": "model.xml", "usd": "model.usdc"}
 #: Natural frequency (Hz) of the drives holding parts closed on a free base (as dynamic.py).
 HOLD_HZ = 5.0
 #: Fractions of the range the limit scenarios start from.
