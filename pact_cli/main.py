@@ -590,7 +590,8 @@ def gallery(
     """Write OUT/index.html: photo, photo view, previews, fidelity, joints, validation status
     and a 3D view with joint sliders per asset."""
     from asset_pipeline.catalog.registry import CatalogError
-    from asset_pipeline.gallery.page import gallery_server, write_gallery
+    from asset_pipeline.gallery.page import write_gallery
+    from asset_pipeline.gallery.server import gallery_server
 
     try:
         print(write_gallery(out))

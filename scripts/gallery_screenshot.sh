@@ -5,7 +5,7 @@
 # for the time of the shot, since 3D views cannot load from a file:// page, and waits
 # until the page says its 3D views in sight have drawn (at most TIMEOUT seconds).
 # Nothing leaves the machine: Chromium runs with a new empty profile and no background
-# networking (`python -m asset_pipeline.gallery.page --help`, --screenshot).
+# networking (`python -m asset_pipeline.gallery.server --help`, --screenshot).
 # Environment:
 #   WIDTH, HEIGHT   window size (default 1280 x 2000)
 #   QUERY           page query, e.g. 'asset=cab_a&q=joint_door_0:upper' (that asset's 3D
@@ -30,6 +30,6 @@ if [ ! -x "$chromium" ]; then
   exit 3
 fi
 cd "$repo"
-exec env CHROMIUM="$chromium" "$python" -m asset_pipeline.gallery.page "$out" --no-write \
+exec env CHROMIUM="$chromium" "$python" -m asset_pipeline.gallery.server "$out" --no-write \
   --screenshot "$png" --query "${QUERY:-}" --width "${WIDTH:-1280}" --height "${HEIGHT:-2000}" \
   --timeout "${TIMEOUT:-60}"

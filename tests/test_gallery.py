@@ -26,7 +26,9 @@ from PIL import Image
 from asset_pipeline.catalog.batch import ConvertSettings, run_convert
 from asset_pipeline.catalog.registry import Catalog, register_asset_dir
 from asset_pipeline.gallery.editor import MOTION_LABELS, edited_hints
-from asset_pipeline.gallery.page import CHROMIUM_FLAGS, Shot, screenshots, serving, write_gallery
+from asset_pipeline.gallery.page import write_gallery
+from asset_pipeline.gallery.screenshots import CHROMIUM_FLAGS, Shot, screenshots
+from asset_pipeline.gallery.server import serving
 from asset_pipeline.inputs.folder import hash_files
 from generator.motions import MOTIONS
 

@@ -33,10 +33,12 @@ status):
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import functools
 import json
 import logging
+import sys
 import threading
 from collections.abc import Iterator, Mapping
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
@@ -44,7 +46,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from asset_pipeline.catalog.registry import CatalogError
 from asset_pipeline.gallery.editor import MAX_REQUEST_BYTES, EditRefused, MaskEditor
+from asset_pipeline.gallery.page import write_gallery
+from asset_pipeline.gallery.screenshots import ScreenshotError, screenshot
 
 log = logging.getLogger(__name__)
 
@@ -221,8 +226,6 @@ class GalleryServer(ThreadingHTTPServer):
 
 
 def _rewrite_page(out: Path) -> None:
-    from asset_pipeline.gallery.page import write_gallery  # page imports this module
-
     write_gallery(out)
 
 
@@ -260,3 +263,59 @@ def serving(
         server.shutdown()
         server.server_close()
         thread.join(timeout=5)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m asset_pipeline.gallery.server",
+        description="Write OUT/index.html; --serve serves OUT on 127.0.0.1 for its 3D views; "
+        "--screenshot PNG takes a headless-Chromium shot of the served page.",
+    )
+    ap.add_argument("out", type=Path, help="output folder (assets, registry.sqlite)")
+    ap.add_argument("--serve", action="store_true", help="serve the folder over HTTP after writing")
+    ap.add_argument("--port", type=int, default=8000, help="port (0: any free one; default 8000)")
+    ap.add_argument("--host", default="127.0.0.1", help="interface (default: loopback only)")
+    ap.add_argument("--no-write", action="store_true", help="keep an existing index.html")
+    ap.add_argument("--screenshot", type=Path, metavar="PNG", help="write a screenshot")
+    ap.add_argument("--query", default="", help="page query, e.g. asset=ID&q=joint_door_0:upper")
+    ap.add_argument("--width", type=int, default=1280)
+    ap.add_argument("--height", type=int, default=2000)
+    ap.add_argument("--timeout", type=float, default=60.0, help="seconds to wait for the 3D views")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(message)s")
+    try:
+        if not args.no_write or not (args.out / "index.html").is_file():
+            index = write_gallery(args.out)
+            if not args.screenshot:
+                print(index, flush=True)
+        if args.screenshot:
+            with serving(args.out) as url:
+                page = url + "index.html" + (f"?{args.query}" if args.query else "")
+                state = screenshot(
+                    page, args.screenshot, args.width, args.height, timeout=args.timeout
+                )
+            print(args.screenshot, flush=True)
+            if state != "1":
+                why = "a 3D view failed" if state == "error" else "timed out"
+                print(f"warning: the page was not ready ({why})", file=sys.stderr)
+                return 4
+            return 0
+        if not args.serve:
+            return 0
+        server = gallery_server(args.out, args.port, args.host)
+    except (FileNotFoundError, CatalogError, OSError, ScreenshotError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    host, port = server.server_address[:2]
+    print(f"serving {args.out} at http://{host}:{port}/ (Ctrl-C stops)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
