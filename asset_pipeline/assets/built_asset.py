@@ -268,6 +268,15 @@ class BuiltAsset:
             raise ValueError(f"asset {self.id!r} has no folder yet")
         return self.folder / filename
 
+    def friction_force(self, joint: Joint) -> float:
+        """``joint``'s friction as a Coulomb force (N) or torque (N m), what MuJoCo's
+        ``frictionloss`` and Newton's ``newton:friction`` mean: the asset's friction is the
+        coefficient SAPIEN hands to PhysX, which scales it by the joint's load, about the
+        carried part's weight (asset_pipeline.assets.rig), so coefficient x mass x g."""
+        inertial = self.link(joint.child).inertial
+        mass = inertial.mass if inertial is not None and math.isfinite(inertial.mass) else 0.0
+        return float(joint.physics.friction) * max(mass, 0.0) * 9.81
+
     @property
     def joint_friction(self) -> dict[str, float]:
         """``friction`` of every joint, by name (SAPIEN's builder drops it: see sim_options)."""

@@ -82,7 +82,8 @@ def mjcf_string(asset: BuiltAsset) -> str:
                 # twice its 2 ms default timestep) holds it as PhysX does (docs/validation.md)
                 solreflimit=LIMIT_SOLREF,
                 damping=fmt(j.physics.damping),
-                frictionloss=fmt(j.physics.friction),
+                # the asset's friction is PhysX's coefficient; MuJoCo's is a force
+                frictionloss=fmt(asset.friction_force(j)),
                 actuatorfrcrange=vec([-j.physics.effort, j.physics.effort]),
             )
         for k, v in enumerate(link.visuals):

@@ -56,7 +56,6 @@ log = logging.getLogger(__name__)
 
 #: File name of the USD stage in a built asset folder.
 USD_NAME = "model.usdc"
-GRAVITY = 9.81
 #: Friction material of every collider: SimOptions' (static, dynamic, restitution), the
 #: one SAPIEN validation and the tasks load the asset with.
 COLLIDER_MATERIAL = (0.6, 0.5, 0.0)
@@ -107,18 +106,6 @@ def principal_inertia(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if np.linalg.det(R) < 0:
         R[:, 0] = -R[:, 0]
     return d, R
-
-
-def child_weight(asset: BuiltAsset, joint: Joint) -> float:
-    """The weight (N) of the part a joint carries (its child link's mass x g)."""
-    inertial = asset.link(joint.child).inertial
-    return (inertial.mass if inertial is not None else 0.0) * GRAVITY
-
-
-def coulomb_friction(asset: BuiltAsset, joint: Joint) -> float:
-    """The joint's friction as a Coulomb force (N) or torque (N m): SAPIEN's coefficient
-    times the carried part's weight (docs/usd.md)."""
-    return float(joint.physics.friction) * child_weight(asset, joint)
 
 
 def _mesh_arrays(mesh: trimesh.Trimesh, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -322,9 +309,7 @@ def _joint(stage, root: str, asset: BuiltAsset, j: Joint, bodies: dict[str, str]
             float(j.physics.velocity) * scale
         )
     prim.AddAppliedSchema("NewtonJointAPI")
-    prim.CreateAttribute("newton:friction", Sdf.ValueTypeNames.Float).Set(
-        coulomb_friction(asset, j)
-    )
+    prim.CreateAttribute("newton:friction", Sdf.ValueTypeNames.Float).Set(asset.friction_force(j))
 
 
 def usd_stage(asset: BuiltAsset):
