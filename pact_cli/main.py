@@ -763,6 +763,13 @@ def convert(
         sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint.resolve()),
         formats=check_formats_option(formats),
     )
+    if parse and settings.segmenter == "sam2":  # a SAM2 that cannot load stops the run
+        from asset_pipeline.catalog.batch import load_segmenter
+
+        try:
+            load_segmenter(settings)
+        except (ImportError, ValueError, OSError) as e:
+            raise fail(str(e)) from e
     log_file = None
     if log_json is not None and str(log_json) != "-":
         try:

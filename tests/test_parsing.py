@@ -221,3 +221,21 @@ def test_the_gallery_says_what_the_parser_read(tmp_path, monkeypatch):
     page = write_gallery(out).read_text()
     assert "category oven (parser 0.95)" in page
     assert "2: flap_bottom (parser 0.90)" in page and "read by the parser: check it" in page
+
+
+def test_convert_with_a_bad_sam2_checkpoint_stops_with_one_error_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from pact_cli.main import app
+
+    images = tmp_path / "in"
+    images.mkdir()
+    shutil.copy(EXAMPLES / "oven_t0000001.png", images / "oven.png")
+    bad = tmp_path / "sam2.1_hiera_tiny.pt"
+    bad.write_bytes(b"not a checkpoint")
+    args = ["convert", str(images), "--out", str(tmp_path / "out"), "--segmenter", "sam2"]
+    r = CliRunner().invoke(app, [*args, "--sam2-checkpoint", str(bad)])
+    assert r.exit_code == 2 and str(bad) in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "out" / "oven").exists()
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 2 and "--sam2-checkpoint" in r.output
