@@ -73,7 +73,8 @@ def prim_name(name: str) -> str:
     """The USD prim name of a link, joint or asset name (a valid identifier)."""
     from pxr import Tf
 
-    return Tf.MakeValidIdentifier(name)
+    # a PartNet id ("11846") keeps its digits: "_11846", not "_1846"
+    return Tf.MakeValidIdentifier(f"_{name}" if name[:1].isdigit() else name)
 
 
 def axis_frame(axis: np.ndarray) -> np.ndarray:
