@@ -14,12 +14,8 @@ import pytest
 
 from asset_pipeline.assets.folder import load_asset
 from asset_pipeline.validate import read_report, validate_asset
-from asset_pipeline.validate.engines import (
-    Trajectory,
-    engine_checks,
-    engine_report,
-    scenarios,
-)
+from asset_pipeline.validate.engine_scenarios import Trajectory, scenarios
+from asset_pipeline.validate.engines import engine_checks, engine_report
 from asset_pipeline.validate.report import DEFAULT_TOLERANCES
 from tests.asset_fixtures import write_box_cabinet
 

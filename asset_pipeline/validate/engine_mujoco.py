@@ -12,7 +12,7 @@ import numpy as np
 
 from asset_pipeline.assets.built_asset import BuiltAsset
 from asset_pipeline.assets.layout import MJCF_NAME
-from asset_pipeline.validate.engines import Scenario, Trajectory, hold_gains
+from asset_pipeline.validate.engine_scenarios import Scenario, Trajectory, hold_gains
 
 
 def load_model(path: Path, free_base: bool = False):

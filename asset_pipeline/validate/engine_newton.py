@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from asset_pipeline.assets.built_asset import BuiltAsset
-from asset_pipeline.validate.engines import Scenario, Trajectory, hold_gains
+from asset_pipeline.validate.engine_scenarios import Scenario, Trajectory, hold_gains
 
 log = logging.getLogger(__name__)
 

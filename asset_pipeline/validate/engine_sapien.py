@@ -10,7 +10,7 @@ import numpy as np
 from asset_pipeline.assets.built_asset import BuiltAsset
 from asset_pipeline.simulation.sapien_scenes import load_articulation, physics_scene
 from asset_pipeline.simulation.sim_options import DEFAULT_SIM_OPTIONS, SimOptions
-from asset_pipeline.validate.engines import Scenario, Trajectory, hold_gains
+from asset_pipeline.validate.engine_scenarios import Scenario, Trajectory, hold_gains
 
 
 def _run(asset: BuiltAsset, s: Scenario, options: SimOptions) -> Trajectory:
