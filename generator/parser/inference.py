@@ -1,0 +1,423 @@
+"""Parse a photo: its category, its part mask and each movable part's motion.
+
+    parser = PhotoParser.default()          # shipped weights, CPU, cached per process
+    parsed = parser.parse(image)            # (H, W, 3) uint8 RGB [, alpha=(H, W) bool]
+    parsed.category, parsed.category_confidence, parsed.mask, parsed.parts, parsed.seconds
+    parser.label(image, mask)               # a given mask: category and each region's motion
+    parser.merge_regions(image, regions)    # candidate regions (SAM2's) merged into parts
+
+How (``docs/parser.md``): the photo is letterboxed to the network's size and run once to
+find the object (unless a silhouette ``alpha`` is given); a square round the object
+(it fills ``fill`` of the side, as in training) is resampled and run again, with its
+mirror image (whose left and right doors swap back). The network's per-pixel
+probabilities (background, base, movable part; a part's edge; six motions) are mapped
+back onto the photo. Parts are the connected components of the movable pixels off the
+edges (tiny ones dropped); the other movable pixels join the nearest part within reach
+(or, far from any, form parts of their own when large enough). A part's motion is the mean of its pixels' motion probabilities; the category is the
+mean of the two views' category probabilities.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from scipy import ndimage
+
+from generator.motions import MOTIONS
+from generator.parser.data import FLIP_MOTION, letterbox_matrix
+from generator.parser.model import CATEGORIES, ParserNet, load_weights
+
+log = logging.getLogger(__name__)
+
+DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights"
+
+
+@dataclass
+class ParsedPart:
+    id: int  # mask id, >= 2
+    motion: str  # one of MOTIONS
+    confidence: float  # 0..1: the mean probability of ``motion`` over the part's pixels
+    motion_probs: dict[str, float] = field(default_factory=dict, repr=False)
+
+
+@dataclass
+class ParsedPhoto:
+    category: str  # one of CATEGORIES
+    category_confidence: float  # 0..1
+    mask: np.ndarray  # (H, W) uint8: 0 background, 1 base, 2..K parts
+    parts: list[ParsedPart]  # one per id >= 2, by id
+    seconds: float
+    category_probs: dict[str, float] = field(default_factory=dict, repr=False)
+
+
+@dataclass
+class PixelMaps:
+    """The network's beliefs on the photo's pixels (H, W): ``seg`` (4, H, W): probabilities
+    of background / base / movable part, then of a part's edge; ``motion`` (6, H, W)
+    probabilities; ``category`` (8,)."""
+
+    seg: np.ndarray
+    motion: np.ndarray
+    category: np.ndarray
+
+
+@dataclass
+class RegionScores:
+    """Per candidate region: ``classes`` (R, 3) mean probability of background, base and
+    movable part; ``overlap`` (R, P) share of the region's pixels in each of the parse's
+    P parts; ``parse`` the full parse they were measured against."""
+
+    classes: np.ndarray
+    overlap: np.ndarray
+    parse: ParsedPhoto
+
+
+class PhotoParser:
+    """The parser around one ``ParserNet`` (eval mode)."""
+
+    _default: PhotoParser | None = None
+    _lock = threading.Lock()
+
+    def __init__(
+        self,
+        model: ParserNet,
+        *,
+        device: str | torch.device = "cpu",
+        threads: int | None = None,
+        fill: float = 0.75,
+        flip: bool = True,
+        min_part: float = 0.004,
+        bf16: bool = True,
+        version: str = "parser-untrained",
+    ) -> None:
+        self.model = model.eval().to(device, memory_format=torch.channels_last)
+        self.version = version  # names the weights in reports, hints and the catalog
+        self.device = torch.device(device)
+        self.size = int(model.cfg.image_size)
+        self.threads = threads
+        self.fill = fill
+        self.flip = flip
+        self.min_part = min_part  # of the object's pixels: smaller interiors are dropped
+        self.bf16 = bf16 and self.device.type == "cpu"
+
+    # ------------------------------------------------------------------ construction
+
+    @classmethod
+    def from_dir(
+        cls, path: str | Path, device: str | torch.device | None = None, **kw
+    ) -> PhotoParser:
+        device = device or ("cuda" if torch.cuda.is_available() else "cpu")
+        model, meta = load_weights(path, device)
+        digest = hashlib.sha256((Path(path) / "model.safetensors").read_bytes()).hexdigest()
+        kw.setdefault("version", f"parser-{meta.get('extra', {}).get('step', 0)}-{digest[:8]}")
+        return cls(model, device=device, **kw)
+
+    @classmethod
+    def default(cls) -> PhotoParser:
+        """The shipped weights (``generator/parser/weights``), loaded once per process."""
+        with cls._lock:
+            if cls._default is None:
+                cls._default = cls.from_dir(DEFAULT_WEIGHTS)
+            return cls._default
+
+    # ------------------------------------------------------------------ network
+
+    @torch.no_grad()
+    def _run(self, square: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(S, S, 3) uint8 -> seg (4, S, S) (3 classes + edge), motion (6, S, S)
+        probabilities, category (8,)."""
+        x = torch.from_numpy(square).to(self.device).permute(2, 0, 1).float() / 255
+        batch = torch.stack([x, x.flip(-1)]) if self.flip else x[None]
+        batch = batch.contiguous(memory_format=torch.channels_last)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.bf16):
+            out = self.model(batch)
+        size = (self.size, self.size)
+        seg = torch.cat(
+            [
+                torch.nn.functional.interpolate(out.seg.float(), size, mode="bilinear").softmax(1),
+                torch.nn.functional.interpolate(
+                    out.boundary.float(), size, mode="bilinear"
+                ).sigmoid(),
+            ],
+            1,
+        )
+        mot = torch.nn.functional.interpolate(out.motion.float(), size, mode="bilinear").softmax(1)
+        cat = out.category.float().softmax(1)
+        if self.flip:
+            seg = (seg[0] + seg[1].flip(-1)) / 2
+            mot = (mot[0] + mot[1].flip(-1)[torch.as_tensor(FLIP_MOTION)]) / 2
+            cat = cat.mean(0)
+        else:
+            seg, mot, cat = seg[0], mot[0], cat[0]
+        return seg.cpu().numpy(), mot.cpu().numpy(), cat.cpu().numpy()
+
+    def _warp_in(self, image: np.ndarray, M: np.ndarray) -> np.ndarray:
+        return cv2.warpAffine(
+            image,
+            M,
+            (self.size, self.size),
+            flags=cv2.INTER_AREA if M[0, 0] < 1 else cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=(127, 127, 127),
+        )
+
+    def _warp_out(
+        self, maps: np.ndarray, M: np.ndarray, h: int, w: int, border: list[float]
+    ) -> np.ndarray:
+        """(C, S, S) maps in the square -> (C, h, w) on the photo (``M``: photo -> square)."""
+        out = np.empty((maps.shape[0], h, w), np.float32)
+        for c in range(maps.shape[0]):
+            out[c] = cv2.warpAffine(
+                maps[c],
+                M,
+                (w, h),
+                flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=border[c],
+            )
+        return out
+
+    def crop_matrix(self, silhouette: np.ndarray) -> np.ndarray:
+        """2 x 3 affine photo -> square framing the silhouette's box (it fills ``fill``)."""
+        ys, xs = np.nonzero(silhouette)
+        h, w = silhouette.shape
+        if len(ys) == 0:
+            return letterbox_matrix(h, w, self.size)
+        y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+        side = max(y1 - y0, x1 - x0, 8) / self.fill
+        s = self.size / side
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        return np.array([[s, 0, self.size / 2 - s * cx], [0, s, self.size / 2 - s * cy]])
+
+    def pixel_maps(self, image: np.ndarray, alpha: np.ndarray | None = None) -> PixelMaps:
+        """The network's probabilities on the photo's pixels (two passes, see the module)."""
+        image = _rgb(image)
+        h, w = image.shape[:2]
+        if alpha is None:
+            M0 = letterbox_matrix(h, w, self.size)
+            seg0, _, _ = self._run(self._warp_in(image, M0))
+            fg = self._warp_out(seg0[:1], M0, h, w, [1.0])[0] < 0.5
+            alpha = _main_object(fg)
+        M = self.crop_matrix(alpha)
+        seg, mot, cat = self._run(self._warp_in(image, M))
+        seg = self._warp_out(seg, M, h, w, [1.0, 0.0, 0.0, 0.0])
+        mot = self._warp_out(mot, M, h, w, [1.0 / len(MOTIONS)] * len(MOTIONS))
+        return PixelMaps(seg, mot, cat)
+
+    # ------------------------------------------------------------------ the API
+
+    def parse(self, image: np.ndarray, alpha: np.ndarray | None = None) -> ParsedPhoto:
+        """Category, part mask (photo size) and motions of a bare photo; ``alpha`` (H, W)
+        bool: the object's silhouette when known (pixels outside it are background)."""
+        return self._parse(image, alpha)[0]
+
+    def _parse(self, image: np.ndarray, alpha: np.ndarray | None) -> tuple[ParsedPhoto, PixelMaps]:
+        t0 = time.perf_counter()
+        with _threads(self.threads):
+            maps = self.pixel_maps(image, alpha)
+        mask = instances(maps.seg, alpha=alpha, min_part=self.min_part)
+        return self._photo(maps, mask, t0), maps
+
+    def label(self, image: np.ndarray, mask: np.ndarray) -> ParsedPhoto:
+        """A given part mask (ids 0..K; 1 the base): the category and each region's
+        motion (ids >= 2); the mask is returned unchanged."""
+        t0 = time.perf_counter()
+        mask = np.asarray(mask)
+        with _threads(self.threads):
+            maps = self.pixel_maps(image, mask > 0)
+        return self._photo(maps, mask, t0)
+
+    def score_regions(self, image: np.ndarray, regions: list[np.ndarray]) -> RegionScores:
+        """How the network sees each candidate region (``RegionScores``)."""
+        return self._score_regions(image, regions)[0]
+
+    def _score_regions(
+        self, image: np.ndarray, regions: list[np.ndarray]
+    ) -> tuple[RegionScores, PixelMaps]:
+        parsed, maps = self._parse(image, None)
+        probs = maps.seg
+        classes = np.zeros((len(regions), 3))
+        ids = [p.id for p in parsed.parts]
+        overlap = np.zeros((len(regions), len(ids)))
+        for r, reg in enumerate(regions):
+            reg = np.asarray(reg, bool)
+            n = reg.sum()
+            if n == 0:
+                classes[r] = (1.0, 0.0, 0.0)
+                continue
+            p = probs[:, reg].mean(1)
+            classes[r] = (p[0], p[1], p[2])
+            for j, pid in enumerate(ids):
+                overlap[r, j] = (parsed.mask[reg] == pid).sum() / n
+        return RegionScores(classes, overlap, parsed), maps
+
+    def merge_regions(self, image: np.ndarray, regions: list[np.ndarray]) -> ParsedPhoto:
+        """Candidate regions (``(H, W)`` bool each, e.g. SAM2's automatic masks, possibly
+        overlapping) -> a ParsedPhoto whose parts are unions of regions: a region that is
+        mostly background (network's view) is background, one more part than base joins
+        the parse's part it overlaps most (a new part when it overlaps none), the rest is
+        base. Larger regions are painted first, so smaller (finer) ones win overlaps;
+        pixels no region covers are background."""
+        t0 = time.perf_counter()
+        scores, maps = self._score_regions(image, regions)
+        h, w = scores.parse.mask.shape
+        mask = np.zeros((h, w), np.int32)
+        order = np.argsort([-np.asarray(r, bool).sum() for r in regions])
+        next_new = 1000
+        for r in order:
+            bg, base, part = scores.classes[r]
+            reg = np.asarray(regions[r], bool)
+            if bg >= max(base, part):
+                label = 0
+            elif part > base:
+                if scores.overlap.shape[1] and scores.overlap[r].max() > 0.2:
+                    label = scores.parse.parts[int(scores.overlap[r].argmax())].id
+                else:
+                    label, next_new = next_new, next_new + 1
+            else:
+                label = 1
+            mask[reg] = label
+        mask = _renumber(mask)
+        return self._photo(maps, mask, t0)
+
+    # ------------------------------------------------------------------ helpers
+
+    def _photo(self, maps: PixelMaps, mask: np.ndarray, t0: float) -> ParsedPhoto:
+        parts = []
+        for pid in sorted(int(v) for v in np.unique(mask) if v >= 2):
+            p = maps.motion[:, mask == pid].mean(1)
+            k = int(p.argmax())
+            parts.append(
+                ParsedPart(
+                    pid, MOTIONS[k], float(p[k]), dict(zip(MOTIONS, map(float, p), strict=True))
+                )
+            )
+        c = int(maps.category.argmax())
+        return ParsedPhoto(
+            CATEGORIES[c],
+            float(maps.category[c]),
+            mask.astype(np.uint8) if mask.dtype != np.uint8 else mask,
+            parts,
+            time.perf_counter() - t0,
+            dict(zip(CATEGORIES, map(float, maps.category), strict=True)),
+        )
+
+
+# --------------------------------------------------------------------------- post-processing
+
+
+def instances(
+    seg: np.ndarray,
+    alpha: np.ndarray | None = None,
+    min_part: float = 0.004,
+    reach: float = 0.04,
+    edge: float = 0.5,
+) -> np.ndarray:
+    """(4, H, W) probabilities (background, base, movable part; a part's edge) -> (H, W)
+    uint8 mask: 0 background, 1 base, 2..K parts.
+
+    Parts: 4-connected components of the movable pixels whose edge probability is
+    below ``edge``, larger than ``min_part`` of the object's pixels; the other movable
+    pixels join the nearest part within ``reach`` of the object's size (at least 3 px);
+    movable pixels left over form parts of their own when large enough, else stay base.
+    ``alpha``: pixels outside are background, inside are object. Ids run in reading
+    order of the parts' centres (top to bottom, left to right)."""
+    cls = seg[:3].argmax(0)
+    if alpha is not None:
+        alpha = np.asarray(alpha, bool)
+        cls = np.where(alpha, seg[1:3].argmax(0) + 1, 0)
+    obj = cls > 0
+    n_obj = int(obj.sum())
+    out = np.where(obj, 1, 0).astype(np.int32)
+    if n_obj == 0:
+        return out.astype(np.uint8)
+    min_px = max(4, min_part * n_obj)
+    movable = cls == 2
+    parts = _components(movable & (seg[3] < edge), min_px)
+    ys, xs = np.nonzero(obj)
+    size = max(ys.max() - ys.min(), xs.max() - xs.min()) + 1
+    if parts.any():
+        dist, (iy, ix) = ndimage.distance_transform_edt(parts == 0, return_indices=True)
+        grow = movable & (parts == 0) & (dist <= max(3.0, reach * size))
+        parts = np.where(grow, parts[iy, ix], parts)
+    rest = _components(movable & (parts == 0), min_px)
+    parts = np.where(rest > 0, rest + parts.max(), parts)
+    n = int(parts.max())
+    if n == 0:
+        return out.astype(np.uint8)
+    # reading order: by centre row (in bands of 5 % of the object), then column
+    idx = np.arange(1, n + 1)
+    cy = np.asarray(ndimage.mean(np.indices(parts.shape)[0], parts, idx))
+    cx = np.asarray(ndimage.mean(np.indices(parts.shape)[1], parts, idx))
+    order = np.lexsort((cx, np.round(cy / (0.05 * size))))
+    rank = np.zeros(n + 1, np.int32)
+    rank[order + 1] = np.arange(n) + 2
+    out = np.where(parts > 0, rank[parts], out)
+    return out.astype(np.uint8)
+
+
+def _components(binary: np.ndarray, min_px: float) -> np.ndarray:
+    """(H, W) int32: 4-connected components of ``binary`` with at least ``min_px``
+    pixels, numbered 1..n; 0 elsewhere."""
+    lab, n = ndimage.label(binary)
+    if n == 0:
+        return lab.astype(np.int32)
+    sizes = ndimage.sum_labels(np.ones_like(lab), lab, np.arange(1, n + 1))
+    keep = np.nonzero(sizes >= min_px)[0] + 1
+    remap = np.zeros(n + 1, np.int32)
+    remap[keep] = np.arange(1, len(keep) + 1)
+    return remap[lab]
+
+
+def _main_object(fg: np.ndarray) -> np.ndarray:
+    """The foreground's components that matter: the largest and any other at least a
+    fifth of its size (a desk's legs may be apart in a coarse map)."""
+    lab, n = ndimage.label(fg)
+    if n <= 1:
+        return fg
+    sizes = ndimage.sum_labels(np.ones_like(lab), lab, np.arange(1, n + 1))
+    keep = np.nonzero(sizes >= 0.2 * sizes.max())[0] + 1
+    return np.isin(lab, keep)
+
+
+def _renumber(mask: np.ndarray) -> np.ndarray:
+    """Ids >= 2 made consecutive (2, 3, ...) in order of first appearance by value."""
+    out = np.where(mask == 1, 1, 0).astype(np.int32)
+    for k, v in enumerate(sorted(int(v) for v in np.unique(mask) if v >= 2)):
+        out[mask == v] = k + 2
+    return out
+
+
+def _rgb(image: np.ndarray) -> np.ndarray:
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, -1)
+    if image.shape[-1] == 4:
+        image = image[..., :3]
+    if image.dtype != np.uint8:
+        image = np.clip(image * (255.0 if image.max() <= 1.0 else 1.0), 0, 255).astype(np.uint8)
+    return np.ascontiguousarray(image)
+
+
+class _threads:
+    """Temporarily set torch's intra-op threads (None: leave as is)."""
+
+    def __init__(self, n: int | None) -> None:
+        self.n, self.old = n, None
+
+    def __enter__(self) -> None:
+        if self.n:
+            self.old = torch.get_num_threads()
+            torch.set_num_threads(self.n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.old:
+            torch.set_num_threads(self.old)

@@ -1,0 +1,210 @@
+"""The photo parser (generator/parser): network shapes, targets, augmentation, instance
+extraction, weights, and the shipped weights on a bundled example photo."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from generator.motions import MOTIONS
+from generator.parser import (
+    CATEGORIES,
+    ParsedPhoto,
+    ParserConfig,
+    ParserNet,
+    PhotoParser,
+    instances,
+)
+from generator.parser.data import AugmentConfig, ParserDataset, StepBatches, motion_lut, targets
+from generator.parser.model import load_weights, save_weights
+
+REPO = Path(__file__).resolve().parents[1]
+TINY = ParserConfig(
+    image_size=64,
+    channels=(8, 8, 16, 16, 16),
+    blocks=(0, 0, 1, 0, 0),
+    decoder_channels=(8, 8, 16, 16),
+)
+
+
+def _check_photo(p: ParsedPhoto, h: int, w: int) -> None:
+    assert p.category in CATEGORIES
+    assert 0.0 <= p.category_confidence <= 1.0
+    assert p.mask.shape == (h, w) and p.mask.dtype == np.uint8
+    ids = sorted(int(v) for v in np.unique(p.mask) if v >= 2)
+    assert ids == list(range(2, 2 + len(ids)))  # consecutive
+    assert [q.id for q in p.parts] == ids
+    for q in p.parts:
+        assert q.motion in MOTIONS and 0.0 <= q.confidence <= 1.0
+    assert p.seconds >= 0
+
+
+def test_untrained_model_shapes() -> None:
+    model = ParserNet(TINY).eval()
+    with torch.no_grad():
+        out = model(torch.rand(2, 3, 64, 64))
+    assert out.seg.shape == (2, 3, 32, 32)
+    assert out.boundary.shape == (2, 1, 32, 32)
+    assert out.motion.shape == (2, len(MOTIONS), 32, 32)
+    assert out.category.shape == (2, len(CATEGORIES))
+
+
+def test_targets_band_and_motion() -> None:
+    mask = np.zeros((32, 32), np.uint8)
+    mask[4:28, 4:28] = 1
+    mask[8:24, 8:16] = 2
+    mask[8:24, 16:24] = 3  # touching part 2: a band on both sides
+    lut = motion_lut({"parts": {"2": {"motion": "door_left"}, "3": {"motion": "door_right"}}})
+    seg, boundary, motion = targets(mask, lut, 32)
+    assert boundary[16, 15] == 1 and boundary[16, 16] == 1  # both sides where the parts meet
+    assert boundary[16, 7] == 1 and boundary[16, 8] == 1  # where a part meets the base
+    assert boundary[16, 11] == 0 and boundary[5, 5] == 0  # inside a part, inside the base
+    assert boundary[4, 16] == 0  # the object's outline is no part edge
+    assert seg[16, 10] == 2 and seg[16, 20] == 2
+    assert seg[5, 5] == 1 and seg[0, 0] == 0
+    assert motion[16, 10] == MOTIONS.index("door_left")
+    assert motion[16, 20] == MOTIONS.index("door_right")
+    assert motion[5, 5] == -1
+
+
+def _tiny_dataset(root: Path) -> None:
+    (root / "images").mkdir(parents=True)
+    img = np.full((64, 64, 3), 200, np.uint8)
+    mask = np.zeros((64, 64), np.uint8)
+    mask[10:54, 10:54] = 1
+    mask[14:50, 14:30] = 2  # a door on the left half of the front
+    img[mask == 1] = (120, 90, 60)
+    img[mask == 2] = (60, 60, 160)
+    Image.fromarray(img).save(root / "images" / "a.png")
+    Image.fromarray(mask).save(root / "images" / "a.mask.png")
+    hints = {"category": "cabinet", "parts": {"2": {"motion": "door_left"}}}
+    (root / "images" / "a.json").write_text(json.dumps(hints))
+    manifest = {
+        "schema": "pact.parser_data",
+        "version": 1,
+        "image_size": 64,
+        "categories": list(CATEGORIES),
+        "motions": list(MOTIONS),
+        "items": [
+            {"id": "a", "object": "a", "category": "cabinet", "style": "product", "split": "train"}
+        ],
+    }
+    (root / "manifest.json").write_text(json.dumps(manifest))
+
+
+@pytest.mark.parametrize("flip", [0.0, 1.0])
+def test_flip_swaps_left_and_right_doors(tmp_path: Path, flip: float) -> None:
+    _tiny_dataset(tmp_path)
+    cfg = AugmentConfig(
+        fill=(0.9, 0.9),
+        stretch=0.0,
+        rotate=0.0,
+        flip=flip,
+        color=0,
+        retint=0,
+        gray=0,
+        blur=0,
+        noise=0,
+        lowres=0,
+        jpeg=0,
+    )
+    ds = ParserDataset(tmp_path, "train", size=64, augment=True, cfg=cfg)
+    s = ds[(0, 3)]
+    motion = s["motion"].numpy()
+    found = set(np.unique(motion[motion >= 0]).tolist())
+    door_cols = np.nonzero((motion >= 0).any(0))[0]
+    if flip:
+        assert found == {MOTIONS.index("door_right")}
+        assert door_cols.mean() > 16  # the door moved to the right half
+    else:
+        assert found == {MOTIONS.index("door_left")}
+        assert door_cols.mean() < 16
+    assert s["image"].shape == (3, 64, 64) and int(s["category"]) == CATEGORIES.index("cabinet")
+
+
+def test_step_batches_are_reproducible() -> None:
+    a = list(StepBatches(10, 4, seed=1, start=0, stop=5))
+    b = list(StepBatches(10, 4, seed=1, start=3, stop=5))
+    assert a[3:] == b
+
+
+def _seg_probs(cls: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """Class map (0 bg, 1 base, 2 part) + edge map -> the (4, H, W) maps ``instances`` reads."""
+    return np.concatenate([np.eye(3, dtype=np.float32)[cls].transpose(2, 0, 1), edge[None]])
+
+
+def test_instances_from_a_hand_made_map() -> None:
+    cls = np.zeros((40, 40), int)
+    cls[5:35, 5:35] = 1  # base
+    cls[8:20, 8:32] = 2  # top part
+    cls[20:32, 8:32] = 2  # bottom part, touching the top one
+    cls[34, 5] = 2  # a speck far from the parts: dropped, stays base
+    edge = np.zeros((40, 40), np.float32)
+    edge[18:22, 6:34] = 0.9  # the seam between the two parts
+    edge[6:34, 7:10] = 0.8  # the parts' left edges
+    mask = instances(_seg_probs(cls, edge))
+    assert mask.dtype == np.uint8
+    assert mask[0, 0] == 0 and mask[6, 6] == 1
+    assert mask[14, 20] == 2 and mask[26, 20] == 3  # reading order: top first
+    assert mask[19, 20] == 2 and mask[20, 20] == 3  # edge pixels joined their nearest part
+    assert mask[10, 8] == 2 and mask[30, 8] == 3
+    assert mask[34, 5] == 1
+    assert sorted(np.unique(mask).tolist()) == [0, 1, 2, 3]
+    alpha = np.zeros((40, 40), bool)
+    alpha[5:35, 5:20] = True
+    cut = instances(_seg_probs(cls, edge), alpha=alpha)
+    assert not cut[:, 20:].any() and cut[6, 6] == 1
+
+
+def test_instances_keep_a_part_that_is_all_edge() -> None:
+    cls = np.zeros((40, 40), int)
+    cls[5:35, 5:35] = 1
+    cls[10:14, 8:32] = 2  # a thin drawer front the edge map covers entirely
+    edge = np.zeros((40, 40), np.float32)
+    edge[9:15, 7:33] = 0.9
+    mask = instances(_seg_probs(cls, edge))
+    assert mask[12, 20] == 2 and (mask == 2).sum() == 4 * 24
+
+
+def test_weights_round_trip(tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    model = ParserNet(TINY).eval()
+    save_weights(model, tmp_path / "w", {"note": "tiny"})
+    again, meta = load_weights(tmp_path / "w")
+    assert meta["extra"] == {"note": "tiny"} and again.cfg == model.cfg
+    x = torch.rand(1, 3, 64, 64)
+    with torch.no_grad():
+        a, b = model(x), again(x)
+    assert torch.allclose(a.seg, b.seg, atol=0.05)
+
+
+def test_tiny_parser_api_on_any_photo() -> None:
+    parser = PhotoParser(ParserNet(TINY), flip=True)
+    img = np.random.default_rng(0).integers(0, 255, (50, 70, 3), dtype=np.uint8)
+    _check_photo(parser.parse(img), 50, 70)
+    mask = np.zeros((50, 70), np.uint8)
+    mask[10:40, 10:60] = 1
+    mask[15:35, 15:30] = 2
+    mask[15:35, 35:55] = 3
+    labelled = parser.label(img, mask)
+    assert np.array_equal(labelled.mask, mask) and [p.id for p in labelled.parts] == [2, 3]
+    regions = [mask == 1, mask == 2, mask == 3, mask == 0]
+    merged = parser.merge_regions(img, regions)
+    _check_photo(merged, 50, 70)
+    for v in np.unique(merged.mask):  # every output label is a union of whole regions
+        assert all((merged.mask[r] == v).all() or not (merged.mask[r] == v).any() for r in regions)
+
+
+def test_shipped_weights_parse_an_example_photo() -> None:
+    parser = PhotoParser.default()
+    assert PhotoParser.default() is parser  # cached per process
+    path = REPO / "examples" / "images" / "cabinet_t0000001.png"
+    img = np.asarray(Image.open(path).convert("RGB"))
+    parsed = parser.parse(img)
+    _check_photo(parsed, *img.shape[:2])
+    assert (parsed.mask > 0).any()
