@@ -208,3 +208,33 @@ def test_shipped_weights_parse_an_example_photo() -> None:
     parsed = parser.parse(img)
     _check_photo(parsed, *img.shape[:2])
     assert (parsed.mask > 0).any()
+
+
+def test_a_known_category_weighs_the_motions_by_what_its_parts_do() -> None:
+    """p(m | photo, category) ~ p(m | photo) p(m | category) / p(m), hand-computed."""
+    from generator.motions import MOTIONS
+    from generator.parser.inference import _motion_prior
+
+    counts = {"refrigerator": {"door_left": 8}, "dishwasher": {"flap_bottom": 8}}
+    prior = _motion_prior(counts)
+    # +1 per motion: fridge (9, 1, 1, 1, 1, 1)/14 by MOTIONS order, marginal
+    fridge = np.array([9.0 if m == "door_left" else 1.0 for m in MOTIONS])
+    dish = np.array([9.0 if m == "flap_bottom" else 1.0 for m in MOTIONS])
+    marginal = (fridge + dish) / 28
+    np.testing.assert_allclose(prior["refrigerator"], fridge / 14 / marginal)
+    torch.manual_seed(0)  # an untrained network: near-even motion probabilities
+    parser = PhotoParser(ParserNet(ParserConfig(image_size=64, channels=(8, 8, 8, 8, 8),
+                         decoder_channels=(8, 8, 8, 8))), motion_counts=counts)  # fmt: skip
+    img = np.full((64, 64, 3), 128, np.uint8)
+    mask = np.zeros((64, 64), np.uint8)
+    mask[8:56, 8:56] = 1
+    mask[16:48, 16:48] = 2
+    free = parser.label(img, mask)
+    fridge_part = parser.label(img, mask, category="refrigerator").parts[0]
+    dish_part = parser.label(img, mask, category="dishwasher").parts[0]
+    assert fridge_part.motion == "door_left" and dish_part.motion == "flap_bottom"
+    p0 = np.array([free.parts[0].motion_probs[m] for m in MOTIONS])
+    want = p0 * prior["refrigerator"] / (p0 * prior["refrigerator"]).sum()
+    got = np.array([fridge_part.motion_probs[m] for m in MOTIONS])
+    np.testing.assert_allclose(got, want, rtol=1e-5)
+    assert parser.label(img, mask, category="desk").parts[0].motion == free.parts[0].motion

@@ -49,13 +49,13 @@ class FakeParser:
         m[5 * h // 8 : 3 * h // 4, w // 4 : 3 * w // 4] = 3
         return m
 
-    def parse(self, image, alpha=None) -> Reading:
-        self.calls.append("parse")
+    def parse(self, image, alpha=None, category=None) -> Reading:
+        self.calls.append("parse" if category is None else f"parse:{category}")
         parts = [Part(2, "flap_bottom", 0.9), Part(3, "drawer", 0.8)]
         return Reading("oven", 0.95, self._mask(image.shape), parts)
 
-    def label(self, image, mask) -> Reading:
-        self.calls.append("label")
+    def label(self, image, mask, category=None) -> Reading:
+        self.calls.append("label" if category is None else f"label:{category}")
         ids = [int(v) for v in np.unique(mask) if v >= 2]
         return Reading("oven", 0.7, mask, [Part(k, "door_right", 0.6) for k in ids])
 
@@ -96,7 +96,8 @@ def test_the_users_mask_category_and_motions_win(tmp_path):
         {"category": "cabinet", "parts": {"2": {"motion": "door_left"}}}))  # fmt: skip
     parser = FakeParser()
     done, sources = complete_input(_load(tmp_path), parser)
-    assert parser.calls == ["label"]  # part 3 has no motion: the parser labels the regions
+    # part 3 has no motion: the parser labels the regions, knowing the user's category
+    assert parser.calls == ["label:cabinet"]
     assert np.array_equal(done.mask, mask) and done.hints["category"] == "cabinet"
     assert done.hints["parts"] == {"2": {"motion": "door_left"}, "3": {"motion": "door_right"}}
     s = sources.to_json()
@@ -129,7 +130,7 @@ def test_a_parser_that_finds_nothing_leaves_the_item_without_a_mask(tmp_path):
     _photo(tmp_path)
 
     class Blind(FakeParser):
-        def parse(self, image, alpha=None):
+        def parse(self, image, alpha=None, category=None):
             return Reading("other", 0.4, np.zeros(image.shape[:2], np.uint8), [])
 
     done, sources = complete_input(_load(tmp_path), Blind())

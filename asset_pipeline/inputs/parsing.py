@@ -43,9 +43,11 @@ class Parser(Protocol):
 
     version: str
 
-    def parse(self, image: np.ndarray, alpha: np.ndarray | None = None) -> Any: ...
+    def parse(
+        self, image: np.ndarray, alpha: np.ndarray | None = None, category: str | None = None
+    ) -> Any: ...
 
-    def label(self, image: np.ndarray, mask: np.ndarray) -> Any: ...
+    def label(self, image: np.ndarray, mask: np.ndarray, category: str | None = None) -> Any: ...
 
 
 class Segmenter(Protocol):
@@ -117,12 +119,15 @@ def complete_input(
     warnings = list(loaded.warnings)
     where = str(loaded.item.image_path)
     version = getattr(parser, "version", None)
+    # a category the user gives also steers the parser's motions (a fridge's doors swing)
+    has_category = hints.get("category") not in (None, "unknown")
+    category = hints["category"] if has_category else None
     reading = None
     if mask is None:
         reading = (
             segmenter.segment(image, parser)
             if segmenter is not None
-            else parser.parse(image, loaded.alpha)
+            else parser.parse(image, loaded.alpha, category)
         )
         try:
             if not (reading.mask > 0).any():
@@ -141,13 +146,12 @@ def complete_input(
     given_parts = {
         int(k): v["motion"] for k, v in (hints.get("parts") or {}).items() if v.get("motion")
     }
-    has_category = hints.get("category") not in (None, "unknown")
     if (
         reading is None
         and mask is not None
         and (not has_category or set(movable) - set(given_parts))
     ):
-        reading = parser.label(image, mask)
+        reading = parser.label(image, mask, category)
     if has_category:
         sources.category = _given(hints, "category", parsed_record)
     elif reading is not None:

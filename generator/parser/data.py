@@ -80,6 +80,34 @@ def load_item(root: str | Path, item_id: str) -> tuple[np.ndarray, np.ndarray, d
     return image, mask, hints
 
 
+MOTION_PRIOR_NAME = "motion_prior.json"
+
+
+def motion_counts(root: str | Path) -> dict[str, dict[str, int]]:
+    """Per category, how many visible movable parts of the ``train`` items have each
+    motion: what the data says a category's parts do (a fridge's doors are side-hinged,
+    a dishwasher's bottom-hinged). The parser weighs a part's motion by it when the
+    category is known (``PhotoParser.label``'s ``category``)."""
+    manifest = read_manifest(root)
+    counts: dict[str, dict[str, int]] = {}
+    for item in manifest["items"]:
+        if item.get("split") != "train":
+            continue
+        hints = json.loads((Path(root) / "images" / f"{item['id']}.json").read_text())
+        per = counts.setdefault(item["category"], {})
+        for part in hints.get("parts", {}).values():
+            per[part["motion"]] = per.get(part["motion"], 0) + 1
+    return counts
+
+
+def write_motion_prior(root: str | Path, weights: str | Path) -> Path:
+    """``weights``/motion_prior.json: :func:`motion_counts` of the data at ``root``."""
+    path = Path(weights) / MOTION_PRIOR_NAME
+    data = {"data": str(root), "counts": motion_counts(root)}
+    path.write_text(json.dumps(data, indent=1, sort_keys=True))
+    return path
+
+
 def motion_lut(hints: dict, flip: bool = False) -> np.ndarray:
     """(256,) int64: mask id -> motion index (-1 for background, base and unknown ids)."""
     lut = np.full(256, -1, np.int64)

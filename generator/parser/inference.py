@@ -20,6 +20,7 @@ mean of the two views' category probabilities.
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import threading
 import time
@@ -32,7 +33,7 @@ import torch
 from scipy import ndimage
 
 from generator.motions import MOTIONS
-from generator.parser.data import FLIP_MOTION, letterbox_matrix
+from generator.parser.data import FLIP_MOTION, MOTION_PRIOR_NAME, letterbox_matrix
 from generator.parser.model import CATEGORIES, ParserNet, load_weights
 
 log = logging.getLogger(__name__)
@@ -97,9 +98,11 @@ class PhotoParser:
         min_part: float = 0.004,
         bf16: bool = True,
         version: str = "parser-untrained",
+        motion_counts: dict[str, dict[str, int]] | None = None,
     ) -> None:
         self.model = model.eval().to(device, memory_format=torch.channels_last)
         self.version = version  # names the weights in reports, hints and the catalog
+        self.motion_prior = _motion_prior(motion_counts or {})
         self.device = torch.device(device)
         self.size = int(model.cfg.image_size)
         self.threads = threads
@@ -118,6 +121,9 @@ class PhotoParser:
         model, meta = load_weights(path, device)
         digest = hashlib.sha256((Path(path) / "model.safetensors").read_bytes()).hexdigest()
         kw.setdefault("version", f"parser-{meta.get('extra', {}).get('step', 0)}-{digest[:8]}")
+        prior = Path(path) / MOTION_PRIOR_NAME
+        if prior.is_file():
+            kw.setdefault("motion_counts", json.loads(prior.read_text())["counts"])
         return cls(model, device=device, **kw)
 
     @classmethod
@@ -214,26 +220,35 @@ class PhotoParser:
 
     # ------------------------------------------------------------------ the API
 
-    def parse(self, image: np.ndarray, alpha: np.ndarray | None = None) -> ParsedPhoto:
+    def parse(
+        self, image: np.ndarray, alpha: np.ndarray | None = None, category: str | None = None
+    ) -> ParsedPhoto:
         """Category, part mask (photo size) and motions of a bare photo; ``alpha`` (H, W)
-        bool: the object's silhouette when known (pixels outside it are background)."""
-        return self._parse(image, alpha)[0]
+        bool: the object's silhouette when known (pixels outside it are background);
+        ``category``: the object's category when known (it weighs each part's motion by
+        what that category's parts do in the training data, ``motion_prior``)."""
+        return self._parse(image, alpha, category)[0]
 
-    def _parse(self, image: np.ndarray, alpha: np.ndarray | None) -> tuple[ParsedPhoto, PixelMaps]:
+    def _parse(
+        self, image: np.ndarray, alpha: np.ndarray | None, category: str | None = None
+    ) -> tuple[ParsedPhoto, PixelMaps]:
         t0 = time.perf_counter()
         with _threads(self.threads):
             maps = self.pixel_maps(image, alpha)
         mask = instances(maps.seg, alpha=alpha, min_part=self.min_part)
-        return self._photo(maps, mask, t0), maps
+        return self._photo(maps, mask, t0, category), maps
 
-    def label(self, image: np.ndarray, mask: np.ndarray) -> ParsedPhoto:
+    def label(
+        self, image: np.ndarray, mask: np.ndarray, category: str | None = None
+    ) -> ParsedPhoto:
         """A given part mask (ids 0..K; 1 the base): the category and each region's
-        motion (ids >= 2); the mask is returned unchanged."""
+        motion (ids >= 2); the mask is returned unchanged. ``category`` as in
+        :meth:`parse`."""
         t0 = time.perf_counter()
         mask = np.asarray(mask)
         with _threads(self.threads):
             maps = self.pixel_maps(image, mask > 0)
-        return self._photo(maps, mask, t0)
+        return self._photo(maps, mask, t0, category)
 
     def score_regions(self, image: np.ndarray, regions: list[np.ndarray]) -> RegionScores:
         """How the network sees each candidate region (``RegionScores``)."""
@@ -290,10 +305,16 @@ class PhotoParser:
 
     # ------------------------------------------------------------------ helpers
 
-    def _photo(self, maps: PixelMaps, mask: np.ndarray, t0: float) -> ParsedPhoto:
+    def _photo(
+        self, maps: PixelMaps, mask: np.ndarray, t0: float, category: str | None = None
+    ) -> ParsedPhoto:
         parts = []
+        prior = self.motion_prior.get(category) if category else None
         for pid in sorted(int(v) for v in np.unique(mask) if v >= 2):
             p = maps.motion[:, mask == pid].mean(1)
+            if prior is not None:  # p(m | photo, category) ~ p(m | photo) p(m | category) / p(m)
+                p = p * prior
+                p = p / max(float(p.sum()), 1e-12)
             k = int(p.argmax())
             parts.append(
                 ParsedPart(
@@ -362,6 +383,19 @@ def instances(
     rank[order + 1] = np.arange(n) + 2
     out = np.where(parts > 0, rank[parts], out)
     return out.astype(np.uint8)
+
+
+def _motion_prior(counts: dict[str, dict[str, int]]) -> dict[str, np.ndarray]:
+    """Per category, p(motion | category) / p(motion) over ``MOTIONS`` from part counts
+    (one pseudo-count per motion and category, so no motion is ruled out)."""
+    if not counts:
+        return {}
+    table = {
+        c: np.array([per.get(m, 0) for m in MOTIONS], float) + 1.0 for c, per in counts.items()
+    }
+    marginal = sum(table.values())
+    marginal = marginal / marginal.sum()
+    return {c: (t / t.sum()) / marginal for c, t in table.items()}
 
 
 def _components(binary: np.ndarray, min_px: float) -> np.ndarray:

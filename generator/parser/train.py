@@ -39,7 +39,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
-from generator.parser.data import ParserDataset, StepBatches
+from generator.parser.data import ParserDataset, StepBatches, write_motion_prior
 from generator.parser.model import ParserConfig, ParserNet, load_weights, save_weights
 
 log = logging.getLogger(__name__)
@@ -296,6 +296,7 @@ def train(args: Args) -> Path:
                     save_weights(
                         ema, out / f"weights_{step:06d}", {"step": step, "args": asdict(args)}
                     )
+                    write_motion_prior(args.data, out / f"weights_{step:06d}")
                 save_state(out, model, ema, opt, step, args)
                 curve.write(step, row)
                 log.info("step %d %s", step, {k: round(v, 4) for k, v in row.items()})
@@ -306,6 +307,7 @@ def train(args: Args) -> Path:
             if step >= stop:
                 break
     save_weights(ema, out / "weights", {"step": step, "args": asdict(args)})
+    write_motion_prior(args.data, out / "weights")
     return out
 
 
