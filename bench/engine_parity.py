@@ -30,16 +30,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def asset_folders(paths: list[Path]) -> list[Path]:
-    out = []
-    for p in paths:
-        if (p / "model.urdf").is_file():
-            out.append(p)
-        elif p.is_dir():
-            out += sorted(d for d in p.iterdir() if (d / "model.urdf").is_file())
-    return out
-
-
 def part_of(key: str) -> str:
     return key[key.index("[") + 1 : -1]
 
@@ -54,7 +44,7 @@ def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
 
-    from asset_pipeline.assets.folder import load_asset
+    from asset_pipeline.assets.folder import asset_folders, load_asset
     from asset_pipeline.validate.engines import engine_report
     from asset_pipeline.validate.report import DEFAULT_TOLERANCES, jsonable
 

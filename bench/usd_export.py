@@ -33,16 +33,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def asset_folders(paths: list[Path]) -> list[Path]:
-    out = []
-    for p in paths:
-        if (p / "model.urdf").is_file():
-            out.append(p)
-        elif p.is_dir():
-            out += sorted(d for d in p.iterdir() if (d / "model.urdf").is_file())
-    return out
-
-
 def linked_copy(src: Path, dst: Path) -> None:
     for f in src.rglob("*"):
         if f.is_file() and f.suffix not in (".usda", ".usdc"):
@@ -66,7 +56,7 @@ def main() -> None:
     import pxr.Usd  # noqa: F401
 
     import_seconds = time.perf_counter() - t
-    from asset_pipeline.assets.folder import load_asset
+    from asset_pipeline.assets.folder import asset_folders, load_asset
     from asset_pipeline.assets.usd import write_usd
     from asset_pipeline.validate.engines import engine_report
     from asset_pipeline.validate.report import DEFAULT_TOLERANCES, jsonable

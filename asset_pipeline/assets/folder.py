@@ -73,6 +73,18 @@ def formats_in(folder: str | Path) -> tuple[str, ...]:
     return tuple(f for f in FORMATS if (Path(folder) / FORMAT_FILES[f]).is_file())
 
 
+def asset_folders(paths: list[str | Path] | list[Path]) -> list[Path]:
+    """The built-asset folders (holding ``model.urdf``) among ``paths``: each path that is
+    one, else the ones directly inside it, sorted."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if (p / URDF_NAME).is_file():
+            out.append(p)
+        elif p.is_dir():
+            out += sorted(d for d in p.iterdir() if (d / URDF_NAME).is_file())
+    return out
+
+
 def load_asset(folder: str | Path, *, metadata: bool = True) -> BuiltAsset:
     """Read the built asset in ``folder`` (the URDF, then ``asset.json``).
 
