@@ -172,7 +172,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         parser = (
             PhotoParser.default()
             if args.parser_weights is None
-            else PhotoParser.load(args.parser_weights)
+            else PhotoParser.from_dir(args.parser_weights)
         )
     for oid in ids:
         img, mask, hints = _inputs(split_dir, oid, args.no_mask, args.category_hint, parser)

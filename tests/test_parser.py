@@ -203,11 +203,27 @@ def test_tiny_parser_api_on_any_photo() -> None:
 def test_shipped_weights_parse_an_example_photo() -> None:
     parser = PhotoParser.default()
     assert PhotoParser.default() is parser  # cached per process
-    path = REPO / "examples" / "images" / "cabinet_t0000001.png"
+    assert parser.version.startswith("parser-") and parser.motion_prior
+    path = REPO / "examples" / "images" / "desk_t0000001.png"
     img = np.asarray(Image.open(path).convert("RGB"))
+    truth = np.asarray(Image.open(path.with_suffix(".mask.png")))
     parsed = parser.parse(img)
     _check_photo(parsed, *img.shape[:2])
-    assert (parsed.mask > 0).any()
+    # the desk is found (its silhouette), read as a desk, its parts as drawers
+    found, real = parsed.mask > 0, truth > 0
+    assert (found & real).sum() / (found | real).sum() > 0.9
+    assert parsed.category == "desk"
+    assert parsed.parts and {p.motion for p in parsed.parts} == {"drawer"}
+    # with the user's mask and category: every drawer labelled, the oven's door a flap
+    labelled = parser.label(img, truth, category="desk")
+    assert [p.motion for p in labelled.parts] == ["drawer"] * len(np.unique(truth[truth >= 2]))
+    oven = REPO / "examples" / "images" / "oven_t0000001.png"
+    door = parser.label(
+        np.asarray(Image.open(oven).convert("RGB")),
+        np.asarray(Image.open(oven.with_suffix(".mask.png"))),
+        category="oven",
+    ).parts
+    assert [p.motion for p in door] == ["flap_bottom"]
 
 
 def test_a_known_category_weighs_the_motions_by_what_its_parts_do() -> None:

@@ -95,7 +95,9 @@ class PhotoParser:
         threads: int | None = None,
         fill: float = 0.75,
         flip: bool = True,
-        min_part: float = 0.004,
+        min_part: float = 0.03,
+        reach: float = 0.04,
+        edge: float = 0.35,
         bf16: bool = True,
         version: str = "parser-untrained",
         motion_counts: dict[str, dict[str, int]] | None = None,
@@ -108,7 +110,8 @@ class PhotoParser:
         self.threads = threads
         self.fill = fill
         self.flip = flip
-        self.min_part = min_part  # of the object's pixels: smaller interiors are dropped
+        # how movable pixels become parts (:func:`instances`)
+        self.min_part, self.reach, self.edge = min_part, reach, edge
         self.bf16 = bf16 and self.device.type == "cpu"
 
     # ------------------------------------------------------------------ construction
@@ -235,7 +238,9 @@ class PhotoParser:
         t0 = time.perf_counter()
         with _threads(self.threads):
             maps = self.pixel_maps(image, alpha)
-        mask = instances(maps.seg, alpha=alpha, min_part=self.min_part)
+        mask = instances(
+            maps.seg, alpha=alpha, min_part=self.min_part, reach=self.reach, edge=self.edge
+        )
         return self._photo(maps, mask, t0, category), maps
 
     def label(
