@@ -14,6 +14,8 @@ from asset_pipeline.assets.xml_text import fmt, is_identity, quat_wxyz, vec
 _MJCF_JOINT = {"prismatic": "slide", "revolute": "hinge", "continuous": "hinge"}
 #: ``solreflimit`` of every joint (time constant, damping ratio): stiff joint limits.
 LIMIT_SOLREF = "0.005 1"
+#: ``solreffriction`` of every joint: dry friction that holds (as PhysX's joint friction).
+FRICTION_SOLREF = "0.005 1"
 
 
 def _geom_pose(attrs: dict[str, str], T: np.ndarray) -> dict[str, str]:
@@ -25,6 +27,12 @@ def _geom_pose(attrs: dict[str, str], T: np.ndarray) -> dict[str, str]:
 
 def mjcf_string(asset: BuiltAsset) -> str:
     """MJCF of ``asset``: the root body welded to the world, slide/hinge joints.
+
+    Contacts between a part and its parent are excluded (``<contact><exclude>``), as a
+    URDF's are in PhysX. MuJoCo filters parent-child contacts itself only when the parent
+    is not welded to the world, so without the exclusions a part of a fixed base would
+    collide with its carcass wherever their convex pieces meet (a drawer pushed shut, a
+    piece overlapping the carcass) and be pushed where SAPIEN's part is not.
 
     Collision geoms are the convex pieces (group 3); each visual mesh is a
     non-colliding geom (``contype=0 conaffinity=0``, group 1) with a material mapping
@@ -84,6 +92,10 @@ def mjcf_string(asset: BuiltAsset) -> str:
                 damping=fmt(j.physics.damping),
                 # the asset's friction is PhysX's coefficient; MuJoCo's is a force
                 frictionloss=fmt(asset.friction_force(j)),
+                # frictionloss is a soft constraint: with MuJoCo's default (0.02 s) a part
+                # held by its friction against gravity (an oven door ajar) creeps open
+                # ~1 deg/s; 0.005 s makes it hold as PhysX's joint friction does
+                solreffriction=FRICTION_SOLREF,
                 actuatorfrcrange=vec([-j.physics.effort, j.physics.effort]),
             )
         for k, v in enumerate(link.visuals):
@@ -111,4 +123,8 @@ def mjcf_string(asset: BuiltAsset) -> str:
                 "mass": "0",
             }
             etree.SubElement(body, "geom", **_geom_pose(attrs, piece.origin))
+    if asset.joints:
+        contact = etree.SubElement(root, "contact")
+        for j in asset.joints:
+            etree.SubElement(contact, "exclude", body1=j.parent, body2=j.child)
     return xml_text(root)

@@ -10,6 +10,15 @@ damping); a free-base world ignores the stage's ``root_joint`` and gets a FREE j
 floor, its parts held closed by stiffening those drives (``joint_target_ke``/``kd``). The
 pull is a world-frame wrench on the part (``State.body_f``), recomputed every substep.
 
+XPBD measures a revolute joint's angle from the relative rotation of its two frames, in
+(-pi, pi]: a joint limited at 180 deg (a refrigerator door) wraps to -180 deg the moment
+it reaches its limit, and the limit then throws it apart (Newton's XPBD, like Warp's,
+handles joint coordinates only within [-pi, pi]). :func:`_center_revolute` therefore
+turns each revolute joint's parent frame to the middle of its range, so that the solver's
+angle is the joint's position less that middle (limits at +-90 deg for 0..180 deg); the
+bodies, the limits and the drives are where they were, and the trajectories report the
+joint's own position.
+
 XPBD does not model joint friction (Newton's solver docs: ``joint_friction`` is not
 supported; only the MuJoCo solver has it, and that needs ``mujoco-warp``, whose MuJoCo
 pin conflicts with the project's ``mujoco==4.0.0``), so :class:`_StickSlip` applies the
@@ -110,6 +119,7 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
     for k, (name, w) in enumerate(zip(blabel, bworld, strict=True)):
         body[(int(w), name)] = k
     root = prim_name(asset.root)
+    mid = _center_revolute(model, asset, jlabel, W)
     joint_q = model.joint_q.numpy()
     ke = model.joint_target_ke.numpy()
     kd = model.joint_target_kd.numpy()
@@ -121,11 +131,11 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
             ]
             joint_q[fq : fq + 7] = [0.0, 0.0, 0.002, 0.0, 0.0, 0.0, 1.0]
         for n, j in enumerate(joints):
-            joint_q[qi[w, n]] = s.q0.get(j.name, j.lower)
+            joint_q[qi[w, n]] = s.q0.get(j.name, j.lower) - mid[w, n]
+            if target is not None:
+                target[qi[w, n]] = j.lower - mid[w, n]
             if s.free_base:
                 ke[di[w, n]], kd[di[w, n]] = hold_gains(asset, j)
-                if target is not None:
-                    target[qi[w, n]] = j.lower
     model.joint_q.assign(joint_q)
     model.joint_target_ke.assign(ke)
     model.joint_target_kd.assign(kd)
@@ -156,7 +166,7 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
     frames = round(duration / FRAME_DT)
     dt = FRAME_DT / SUBSTEPS
     body_f = np.zeros((model.body_count, 6), dtype=np.float32)
-    q_rec = [joint_q[qi].copy()]
+    q_rec = [joint_q[qi] + mid]
     times = [0.0]
     finite = np.ones(W, dtype=bool)
     for frame in range(frames):
@@ -189,7 +199,7 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
         friction.update(q, s0.joint_qd.numpy()[di])
         finite &= np.isfinite(q).all(axis=1)
         times.append((frame + 1) * FRAME_DT)
-        q_rec.append(q)
+        q_rec.append(q + mid)
     q_all = np.asarray(q_rec)  # (n, W, J)
     times_all = np.asarray(times)
     bq = s0.body_q.numpy()
@@ -212,6 +222,55 @@ def simulate(asset: BuiltAsset, scenarios: Sequence[Scenario]) -> list[Trajector
             )
         )
     return out
+
+
+def _center_revolute(model, asset: BuiltAsset, jlabel: list[str], W: int) -> np.ndarray:
+    """Turn the parent frame of every limited revolute joint of ``model`` to the middle
+    of its range (module docstring); return the middles, (worlds, joints) radians: the
+    solver's coordinate of a joint is its position less its middle."""
+    from asset_pipeline.assets.usd import prim_name
+
+    joints = asset.movable_joints
+    mid = np.zeros((W, len(joints)))
+    revolute = {prim_name(j.name): n for n, j in enumerate(joints) if j.type == "revolute"}
+    if not revolute:
+        return mid
+    jworld = model.joint_world.numpy()
+    qd_start = model.joint_qd_start.numpy()
+    X_p = model.joint_X_p.numpy()
+    axis = model.joint_axis.numpy()
+    lower = model.joint_limit_lower.numpy()
+    upper = model.joint_limit_upper.numpy()
+    for k, (name, w) in enumerate(zip(jlabel, jworld, strict=True)):
+        n = revolute.get(name)
+        if n is None or w < 0:
+            continue
+        d = qd_start[k]
+        m = 0.5 * (float(lower[d]) + float(upper[d]))
+        a = axis[d] / np.linalg.norm(axis[d])
+        turn = np.array([*(a * math.sin(m / 2)), math.cos(m / 2)])
+        X_p[k, 3:7] = _qmul(X_p[k, 3:7], turn)
+        lower[d] -= m
+        upper[d] -= m
+        mid[w, n] = m
+    model.joint_X_p.assign(X_p)
+    model.joint_limit_lower.assign(lower)
+    model.joint_limit_upper.assign(upper)
+    return mid
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Product of two quaternions (x, y, z, w)."""
+    ax, ay, az, aw = (float(c) for c in a)
+    bx, by, bz, bw = (float(c) for c in b)
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 class _StickSlip:
