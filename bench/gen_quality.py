@@ -4,7 +4,7 @@
         [--split-dir runs/test_split] [--no-mask [--one-sample-without-mask]]
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
-        [--categories microwave oven ...] [--styles product room] [--weights FOLDER]
+        [--categories microwave oven ...] [--styles product room] [--views N] [--weights FOLDER]
         [--parser [--parser-weights FOLDER]]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
@@ -161,6 +161,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
             for im in manifest.get("images", [])
             if (not args.categories or im["category"] in args.categories)
             and (not args.styles or im["style"] in args.styles)
+            and (args.views is None or int(im["id"].rsplit("_", 1)[1]) < args.views)
         ][: args.limit]
         ids = [im["id"] for im in images]
     else:
@@ -270,6 +271,12 @@ def main() -> None:
     )
     ap.add_argument("--limit", type=int, default=None, help="Real split: only the first N images.")
     ap.add_argument("--categories", nargs="+", default=None, help="Real split: only these.")
+    ap.add_argument(
+        "--views",
+        type=int,
+        default=None,
+        help="Real split: only each object's first N photos per style (every object kept).",
+    )
     ap.add_argument("--styles", nargs="+", default=None, help="Real split: product and/or room.")
     ap.add_argument("--no-mask", action="store_true")
     ap.add_argument("--category-hint", action="store_true")
