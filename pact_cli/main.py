@@ -437,17 +437,12 @@ def export_cmd(
     reading each asset with load_asset; the files it has are left as they are."""
     import time
 
-    from asset_pipeline.assets.folder import FORMAT_FILES, load_asset
+    from asset_pipeline.assets.folder import FORMAT_FILES, asset_folders, load_asset
     from asset_pipeline.assets.layout import AssetFormatError
 
     if format not in ("usd", "mjcf"):
         raise fail(f"--format must be usd or mjcf, not {format!r}")
-    assets: list[Path] = []
-    for p in paths:
-        if (p / "model.urdf").is_file():
-            assets.append(p)
-        elif p.is_dir():
-            assets.extend(sorted(d for d in p.iterdir() if (d / "model.urdf").is_file()))
+    assets = asset_folders(paths)
     if not assets:
         raise fail("no built asset (model.urdf) under " + ", ".join(map(str, paths)))
     table = Table(title=f"pact export --format {format}")
