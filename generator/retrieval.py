@@ -307,11 +307,19 @@ def mirrored_across_y(part: Part) -> Part:
     return Part(part.name, part.semantic, mesh, joint, prims, handle, part.material)
 
 
+#: Thickness of a panel made from a deeper part (a retrieved drawer that the photo shows
+#: hinged), as a share of the object's largest side.
+PANEL_SHARE = 0.03
+
+
 def follow_motions(obj: ArticulatedObject, motions: dict[int, str]) -> ArticulatedObject:
     """``obj`` with its ``t``-th movable part moving as ``motions[t]`` says (the user's or
     the photo parser's word, :mod:`generator.motions`): a part already moving so is kept;
     a door hinged on the other side is mirrored; any other is remade as a panel for the
-    motion's joint with a bar handle (:func:`generator.box_layout.rigged_panel`)."""
+    motion's joint with a bar handle (:func:`generator.box_layout.rigged_panel`). A part
+    to be hinged keeps only its front slab (a lid its top slab), as thick as a panel: a
+    retrieved drawer's whole box swung on a hinge would sweep through the carcass. Parts
+    are named after what they now are (``door_0``, ``drawer_1``, ...)."""
     from generator.box_layout import rigged_panel
     from generator.motions import MOTION_SEMANTIC, joint_for_motion, motion_of
 
@@ -325,18 +333,48 @@ def follow_motions(obj: ArticulatedObject, motions: dict[int, str]) -> Articulat
         have = motion_of(part)
         if have == motion:
             continue
-        lo, hi = part.mesh.bounds
         if {have, motion} == {"door_left", "door_right"}:
             new = mirrored_across_y(part)
         else:
+            mesh = part.mesh if motion == "drawer" else _panel_slab(part.mesh, motion, outer)
+            lo, hi = mesh.bounds
             joint = joint_for_motion(motion, lo, hi, parent=part.joint.parent)
             semantic = MOTION_SEMANTIC[motion]
             new = rigged_panel(
-                Part(part.name, semantic, part.mesh, joint, [], None, part.material), outer
+                Part(part.name, semantic, mesh, joint, [], None, part.material), outer
             )
         replaced[part.name] = new
-    parts = [replaced.get(p.name, p) for p in obj.parts]
-    return ArticulatedObject(parts, obj.category, obj.scale, dict(obj.provenance))
+    if not replaced:
+        return obj
+    counters: dict[str, int] = {}
+    renamed = []
+    for p in (replaced.get(p.name, p) for p in obj.parts):
+        if p.joint is not None:  # named per semantic in order, as keep_parts names them
+            k = counters.get(p.semantic, 0)
+            counters[p.semantic] = k + 1
+            if p.name != f"{p.semantic}_{k}":
+                p = Part(f"{p.semantic}_{k}", p.semantic, p.mesh, p.joint, p.primitives,
+                         p.handle, p.material)  # fmt: skip
+        renamed.append(p)
+    return ArticulatedObject(renamed, obj.category, obj.scale, dict(obj.provenance))
+
+
+def _panel_slab(mesh: trimesh.Trimesh, motion: str, outer: np.ndarray) -> trimesh.Trimesh:
+    """The front slab of ``mesh``'s box (a lid: the top slab), ``PANEL_SHARE`` of the
+    object's largest side thick, in the mesh's mean colour; ``mesh`` when thinner."""
+    lo, hi = (np.array(b, float) for b in mesh.bounds)
+    t = PANEL_SHARE * float(np.max(np.asarray(outer)[1] - np.asarray(outer)[0]))
+    k = 2 if motion == "lid" else 0
+    if hi[k] - lo[k] <= t:
+        return mesh
+    lo[k] = hi[k] - t
+    slab = trimesh.creation.box(hi - lo)
+    slab.apply_translation((lo + hi) / 2)
+    colours = getattr(mesh.visual, "vertex_colors", None)
+    if colours is not None and len(colours):
+        mean = np.asarray(colours)[:, :4].mean(axis=0).astype(np.uint8)
+        slab.visual.vertex_colors = np.tile(mean, (len(slab.vertices), 1))
+    return slab
 
 
 def keep_parts(obj: ArticulatedObject, order: list[str]) -> ArticulatedObject:

@@ -148,6 +148,35 @@ def test_retrieved_parts_follow_the_given_motions():
     hinge_y = moved[first].joint.origin[1]
     assert abs(moved[first].handle.position[1] - hinge_y) > 0.5 * (moved[first].mesh.extents[1])
     assert moved[second].primitives and moved[second].joint.type == "prismatic"
-    # untouched parts are the same objects
+    # untouched parts keep their geometry and joints; every part is named for what it is
     others = [t for t in range(len(movable)) if t not in want]
-    assert all(moved[t] is movable[t] for t in others)
+    assert all(moved[t].mesh is movable[t].mesh and moved[t].joint is movable[t].joint
+               for t in others)  # fmt: skip
+    assert all(p.name.startswith(p.semantic + "_") for p in moved)
+    assert len({p.name for p in out.parts}) == len(out.parts)
+
+
+def test_a_retrieved_drawer_given_as_a_door_is_a_panel_that_swings_clear():
+    """A drawer box swung on a hinge would sweep through the carcass: given a door's
+    motion, a retrieved drawer keeps only its front slab (tests/test_cli.py validates such
+    assets: the examples converted by retrieval with the parser's motions)."""
+    from generator.motions import motion_of
+    from generator.procedural import sample_object
+    from generator.retrieval import PANEL_SHARE, follow_motions
+
+    obj = next(
+        o for o in (sample_object("cabinet", s) for s in range(40))
+        if any(p.semantic == "drawer" for p in o.movable_parts)
+    )  # fmt: skip
+    t = next(t for t, p in enumerate(obj.movable_parts) if p.semantic == "drawer")
+    drawer = obj.movable_parts[t]
+    assert drawer.mesh.extents[0] > 2 * PANEL_SHARE * float(np.ptp(obj.bounds(), axis=0).max())
+    out = follow_motions(obj, {t: "door_left"})
+    door = out.movable_parts[t]
+    assert motion_of(door) == "door_left" and door.name.startswith("door_")
+    size = float(np.ptp(out.bounds(), axis=0).max())
+    front = drawer.mesh.bounds[1][0]
+    # nothing of the door reaches back into the carcass past a panel's thickness (its bar
+    # handle stands in front of the old drawer's front)
+    assert door.mesh.bounds[0][0] >= front - PANEL_SHARE * size - 1e-6
+    assert door.mesh.bounds[1][0] > front
