@@ -31,17 +31,10 @@ import torch.nn.functional as F
 from safetensors.torch import load_file, save_file
 
 from generator.motions import MOTIONS
+from generator.procedural import CATEGORIES as OBJECT_CATEGORIES
 
-CATEGORIES: tuple[str, ...] = (
-    "cabinet",
-    "desk",
-    "microwave",
-    "oven",
-    "dishwasher",
-    "refrigerator",
-    "washing_machine",
-    "other",
-)
+#: The category head's classes, in its order: the procedural categories, then "other".
+CATEGORIES: tuple[str, ...] = (*OBJECT_CATEGORIES, "other")
 SEG_CLASSES: tuple[str, ...] = ("background", "base", "part")
 
 
