@@ -586,7 +586,7 @@ def gallery(
     and a 3D view with joint sliders per asset."""
     from asset_pipeline.catalog.registry import CatalogError
     from asset_pipeline.gallery.page import write_gallery
-    from asset_pipeline.gallery.server import gallery_server
+    from asset_pipeline.gallery.server import gallery_server, serve_until_interrupted
 
     try:
         print(write_gallery(out))
@@ -597,12 +597,7 @@ def gallery(
         return
     bound_host, bound_port = server.server_address[:2]
     console.print(f"serving {escape(str(out))} at http://{bound_host}:{bound_port}/ (Ctrl-C stops)")
-    try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.server_close()
+    serve_until_interrupted(server)
 
 
 @app.command("parse")

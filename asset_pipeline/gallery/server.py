@@ -265,6 +265,16 @@ def serving(
         thread.join(timeout=5)
 
 
+def serve_until_interrupted(server: ThreadingHTTPServer) -> None:
+    """Serve until Ctrl-C, then close the socket."""
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m asset_pipeline.gallery.server",
@@ -308,12 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     host, port = server.server_address[:2]
     print(f"serving {args.out} at http://{host}:{port}/ (Ctrl-C stops)", flush=True)
-    try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.server_close()
+    serve_until_interrupted(server)
     return 0
 
 
