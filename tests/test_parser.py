@@ -3,6 +3,7 @@ extraction, weights, and the shipped weights on a bundled example photo."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -20,7 +21,15 @@ from generator.parser import (
     PhotoParser,
     instances,
 )
-from generator.parser.data import AugmentConfig, ParserDataset, StepBatches, motion_lut, targets
+from generator.parser.data import (
+    AugmentConfig,
+    ParserDataset,
+    StepBatches,
+    box_targets,
+    motion_lut,
+    targets,
+)
+from generator.parser.inference import box_groups
 from generator.parser.model import load_weights, save_weights
 
 REPO = Path(__file__).resolve().parents[1]
@@ -52,6 +61,48 @@ def test_untrained_model_shapes() -> None:
     assert out.boundary.shape == (2, 1, 32, 32)
     assert out.motion.shape == (2, len(MOTIONS), 32, 32)
     assert out.category.shape == (2, len(CATEGORIES))
+    assert out.box is None
+    boxed = ParserNet(dataclasses.replace(TINY, box=True)).eval()
+    with torch.no_grad():
+        box = boxed(torch.rand(2, 3, 64, 64)).box
+    assert box.shape == (2, 4, 32, 32) and (box >= 0).all()
+
+
+def test_box_targets_and_loss_by_hand() -> None:
+    """A part's pixels point to its box; the IoU loss is 0 on the truth and 1 - IoU off it."""
+    from generator.parser.train import box_loss
+
+    mask = np.zeros((8, 8), np.uint8)
+    mask[1:7, 1:7] = 1
+    mask[2:4, 2:6] = 2  # a 4 x 2 drawer front
+    box = box_targets(mask, 8)
+    # pixel (row 2, col 3): centre (3.5, 2.5); box x 2..6, y 2..4 -> l 1.5, t 0.5, r 2.5, b 1.5
+    assert np.allclose(box[:, 2, 3] * 8, [1.5, 0.5, 2.5, 1.5])
+    assert not box[:, mask != 2].any()
+    t = torch.from_numpy(box)[None]
+    on = torch.from_numpy(mask == 2)[None]
+    assert box_loss(t, t, on).item() == pytest.approx(0.0, abs=1e-6)
+    wider = t.clone()
+    wider[:, 2] += 4 / 8  # every box 4 px wider to the right: IoU 8 / 16
+    assert box_loss(wider, t, on).item() == pytest.approx(1 - 8 / 16, abs=1e-5)
+
+
+def test_box_groups_separate_touching_parts() -> None:
+    """Two drawers touching without an edge between them: their pixels' boxes part them."""
+    movable = np.zeros((40, 40), bool)
+    movable[8:32, 8:32] = True
+    box = np.zeros((4, 40, 40), np.float32)
+    ys, xs = np.indices((40, 40)) + 0.5
+    top = ys < 20
+    box[0], box[2] = xs - 8, 32 - xs
+    box[1] = np.where(top, ys - 8, ys - 20)
+    box[3] = np.where(top, 20 - ys, 32 - ys)
+    parts = box_groups(movable, box, min_px=20)
+    assert parts.max() == 2
+    assert len(np.unique(parts[8:20, 8:32])) == 1 and len(np.unique(parts[20:32, 8:32])) == 1
+    assert parts[10, 10] != parts[30, 10] and parts[0, 0] == 0
+    mask = instances(_seg_probs(np.where(movable, 2, 1), np.zeros((40, 40))), box=box)
+    assert mask[10, 10] == 2 and mask[30, 10] == 3
 
 
 def test_targets_band_and_motion() -> None:

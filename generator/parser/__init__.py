@@ -9,6 +9,7 @@ Network: ``model.py``; training data and augmentation: ``data.py``; training:
 """
 
 from generator.parser.inference import (
+    BoxGrouping,
     ParsedPart,
     ParsedPhoto,
     PhotoParser,
@@ -20,6 +21,7 @@ from generator.parser.model import CATEGORIES, SEG_CLASSES, ParserConfig, Parser
 
 __all__ = [
     "CATEGORIES",
+    "BoxGrouping",
     "SEG_CLASSES",
     "ParsedPart",
     "ParsedPhoto",

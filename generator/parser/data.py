@@ -138,6 +138,28 @@ def targets(
     return seg, boundary, motion
 
 
+def box_targets(mask: np.ndarray, out_size: int) -> np.ndarray:
+    """Part mask (S, S) ids -> (4, out, out) float32: on a movable part's pixel the
+    distances from the pixel's centre to its part's box (left, top, right, bottom edges;
+    the box of the part's pixels at the output resolution), as fractions of ``out``;
+    0 elsewhere."""
+    m = cv2.resize(mask, (out_size, out_size), interpolation=cv2.INTER_NEAREST)
+    out = np.zeros((4, out_size, out_size), np.float32)
+    ys, xs = np.indices(m.shape, dtype=np.float32)
+    ys, xs = ys + 0.5, xs + 0.5
+    for v in np.unique(m):
+        if v < 2:
+            continue
+        on = m == v
+        py, px = np.nonzero(on)
+        x0, x1, y0, y1 = px.min(), px.max() + 1, py.min(), py.max() + 1
+        out[0][on] = xs[on] - x0
+        out[1][on] = ys[on] - y0
+        out[2][on] = x1 - xs[on]
+        out[3][on] = y1 - ys[on]
+    return out / out_size
+
+
 @dataclass(frozen=True)
 class AugmentConfig:
     fill: tuple[float, float] = (0.35, 1.0)  # the object's longer side over the crop side
@@ -313,6 +335,7 @@ class ParserDataset(Dataset):
         seg, boundary, motion = targets(m, motion_lut(hints, flip), self.size // 2)
         cat = hints.get("category", item.get("category", "other"))
         return {
+            "box": torch.from_numpy(box_targets(m, self.size // 2)),
             "image": torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))),
             "seg": torch.from_numpy(seg),
             "boundary": torch.from_numpy(boundary),

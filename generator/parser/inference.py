@@ -63,11 +63,13 @@ class ParsedPhoto:
 class PixelMaps:
     """The network's beliefs on the photo's pixels (H, W): ``seg`` (4, H, W): probabilities
     of background / base / movable part, then of a part's edge; ``motion`` (6, H, W)
-    probabilities; ``category`` (8,)."""
+    probabilities; ``category`` (8,); ``box`` (with a box head) on each pixel the
+    distances in photo pixels to the left, top, right and bottom edges of its part's box."""
 
     seg: np.ndarray
     motion: np.ndarray
     category: np.ndarray
+    box: np.ndarray | None = None  # (4, H, W) photo pixels to the part's box edges (l, t, r, b)
 
 
 @dataclass
@@ -98,6 +100,7 @@ class PhotoParser:
         min_part: float = 0.03,
         reach: float = 0.04,
         edge: float = 0.35,
+        grouping: BoxGrouping | None = None,
         bf16: bool = True,
         version: str = "parser-untrained",
         motion_counts: dict[str, dict[str, int]] | None = None,
@@ -112,6 +115,7 @@ class PhotoParser:
         self.flip = flip
         # how movable pixels become parts (:func:`instances`)
         self.min_part, self.reach, self.edge = min_part, reach, edge
+        self.grouping = grouping or BoxGrouping()
         self.bf16 = bf16 and self.device.type == "cpu"
 
     # ------------------------------------------------------------------ construction
@@ -140,9 +144,11 @@ class PhotoParser:
     # ------------------------------------------------------------------ network
 
     @torch.no_grad()
-    def _run(self, square: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _run(
+        self, square: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """(S, S, 3) uint8 -> seg (4, S, S) (3 classes + edge), motion (6, S, S)
-        probabilities, category (8,)."""
+        probabilities, category (8,), box (4, S, S) distances in square pixels or None."""
         x = torch.from_numpy(square).to(self.device).permute(2, 0, 1).float() / 255
         batch = torch.stack([x, x.flip(-1)]) if self.flip else x[None]
         batch = batch.contiguous(memory_format=torch.channels_last)
@@ -160,13 +166,25 @@ class PhotoParser:
         )
         mot = torch.nn.functional.interpolate(out.motion.float(), size, mode="bilinear").softmax(1)
         cat = out.category.float().softmax(1)
+        box = None
+        if out.box is not None:
+            box = torch.nn.functional.interpolate(out.box.float(), size, mode="bilinear")
+            box = box * self.size
         if self.flip:
             seg = (seg[0] + seg[1].flip(-1)) / 2
             mot = (mot[0] + mot[1].flip(-1)[torch.as_tensor(FLIP_MOTION)]) / 2
             cat = cat.mean(0)
+            if box is not None:  # the mirror's left and right distances swap back
+                box = (box[0] + box[1].flip(-1)[torch.as_tensor([2, 1, 0, 3])]) / 2
         else:
             seg, mot, cat = seg[0], mot[0], cat[0]
-        return seg.cpu().numpy(), mot.cpu().numpy(), cat.cpu().numpy()
+            box = None if box is None else box[0]
+        return (
+            seg.cpu().numpy(),
+            mot.cpu().numpy(),
+            cat.cpu().numpy(),
+            None if box is None else box.cpu().numpy(),
+        )
 
     def _warp_in(self, image: np.ndarray, M: np.ndarray) -> np.ndarray:
         return cv2.warpAffine(
@@ -212,14 +230,16 @@ class PhotoParser:
         h, w = image.shape[:2]
         if alpha is None:
             M0 = letterbox_matrix(h, w, self.size)
-            seg0, _, _ = self._run(self._warp_in(image, M0))
+            seg0 = self._run(self._warp_in(image, M0))[0]
             fg = self._warp_out(seg0[:1], M0, h, w, [1.0])[0] < 0.5
             alpha = _main_object(fg)
         M = self.crop_matrix(alpha)
-        seg, mot, cat = self._run(self._warp_in(image, M))
+        seg, mot, cat, box = self._run(self._warp_in(image, M))
         seg = self._warp_out(seg, M, h, w, [1.0, 0.0, 0.0, 0.0])
         mot = self._warp_out(mot, M, h, w, [1.0 / len(MOTIONS)] * len(MOTIONS))
-        return PixelMaps(seg, mot, cat)
+        if box is not None:  # square pixels -> photo pixels (the crop is a pure scaling)
+            box = self._warp_out(box, M, h, w, [0.0] * 4) / float(M[0, 0])
+        return PixelMaps(seg, mot, cat, box)
 
     # ------------------------------------------------------------------ the API
 
@@ -239,8 +259,19 @@ class PhotoParser:
         with _threads(self.threads):
             maps = self.pixel_maps(image, alpha)
         mask = instances(
-            maps.seg, alpha=alpha, min_part=self.min_part, reach=self.reach, edge=self.edge
+            maps.seg,
+            alpha=alpha,
+            min_part=self.min_part,
+            reach=self.reach,
+            edge=self.edge,
+            box=maps.box,
+            grouping=self.grouping,
         )
+        c = int(maps.category.argmax())
+        if category is None and CATEGORIES[c] == "other" and maps.category[c] >= 0.5:
+            # the training data's "other" furniture has no moving parts (a category the
+            # user gives is left alone: their "other" may be a chest with a lid)
+            mask = np.where(mask >= 2, 1, mask).astype(mask.dtype)
         return self._photo(maps, mask, t0, category), maps
 
     def label(
@@ -346,16 +377,20 @@ def instances(
     min_part: float = 0.004,
     reach: float = 0.04,
     edge: float = 0.5,
+    box: np.ndarray | None = None,
+    grouping: BoxGrouping | None = None,
 ) -> np.ndarray:
     """(4, H, W) probabilities (background, base, movable part; a part's edge) -> (H, W)
     uint8 mask: 0 background, 1 base, 2..K parts.
 
-    Parts: 4-connected components of the movable pixels whose edge probability is
-    below ``edge``, larger than ``min_part`` of the object's pixels; the other movable
-    pixels join the nearest part within ``reach`` of the object's size (at least 3 px);
-    movable pixels left over form parts of their own when large enough, else stay base.
-    ``alpha``: pixels outside are background, inside are object. Ids run in reading
-    order of the parts' centres (top to bottom, left to right)."""
+    Parts: with ``box`` (4, H, W) (each pixel's distances to its part's box edges), the
+    movable pixels grouped by the box they point to (:func:`box_groups`); without it,
+    the 4-connected components of the movable pixels whose edge probability is below
+    ``edge``. Parts smaller than ``min_part`` of the object's pixels are dropped; the
+    other movable pixels join the nearest part within ``reach`` of the object's size
+    (at least 3 px); movable pixels left over form parts of their own when large enough,
+    else stay base. ``alpha``: pixels outside are background, inside are object. Ids run
+    in reading order of the parts' centres (top to bottom, left to right)."""
     cls = seg[:3].argmax(0)
     if alpha is not None:
         alpha = np.asarray(alpha, bool)
@@ -367,7 +402,10 @@ def instances(
         return out.astype(np.uint8)
     min_px = max(4, min_part * n_obj)
     movable = cls == 2
-    parts = _components(movable & (seg[3] < edge), min_px)
+    if box is not None:
+        parts = box_groups(movable, box, min_px, grouping)
+    else:
+        parts = _components(movable & (seg[3] < edge), min_px)
     ys, xs = np.nonzero(obj)
     size = max(ys.max() - ys.min(), xs.max() - xs.min()) + 1
     if parts.any():
@@ -388,6 +426,119 @@ def instances(
     rank[order + 1] = np.arange(n) + 2
     out = np.where(parts > 0, rank[parts], out)
     return out.astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class BoxGrouping:
+    """How :func:`box_groups` makes parts of the movable pixels' part-box votes."""
+
+    iou: float = 0.5  # pixels whose boxes overlap more agree on a part
+    merge_iou: float = 0.4  # groups whose boxes overlap more are one part
+    min_fill: float = 0.35  # a group must fill this share of its box
+    sample: int = 1500  # pixels the mode seeking looks at
+
+
+def box_groups(
+    movable: np.ndarray, box: np.ndarray, min_px: float, grouping: BoxGrouping | None = None
+) -> np.ndarray:
+    """(H, W) int32 parts 1..n (0 elsewhere) of the ``movable`` pixels grouped by the
+    part box each points to (``box`` (4, H, W): distances to its left, top, right and
+    bottom edges). Greedy mode seeking on a sample of at most ``sample`` pixels: the
+    pixel whose box the most free pixels agree with (IoU above ``iou``) makes a group of
+    them, whose box is their median; repeated while a group would hold ``min_px``
+    pixels; two groups whose boxes overlap more than ``merge_iou`` are one (adjacent parts'
+    boxes hardly overlap; one part's votes may split in bands). Every movable pixel then
+    joins, of the group boxes that hold it, the one its
+    own box overlaps most (IoU above ``iou`` / 2); a group whose pixels fill less than
+    ``min_fill`` of its box (a sliver where the votes of two parts blend) is dropped and
+    its pixels go again; a group keeps its largest connected piece and any other piece
+    of at least ``min_px`` pixels."""
+    g = grouping or BoxGrouping()
+    ys, xs = np.nonzero(movable)
+    out = np.zeros(movable.shape, np.int32)
+    if len(ys) < min_px:
+        return out
+    b = box[:, ys, xs]
+    boxes = np.stack([xs + 0.5 - b[0], ys + 0.5 - b[1], xs + 0.5 + b[2], ys + 0.5 + b[3]], 1)
+    step = max(1, int(np.ceil(len(ys) / g.sample)))
+    sub = boxes[::step]
+    agree = _box_iou(sub, sub) > g.iou
+    free = np.ones(len(sub), bool)
+    groups: list[np.ndarray] = []
+    while free.any():
+        support = (agree & free[None, :]).sum(1) * free
+        i = int(support.argmax())
+        if support[i] * step < min_px:
+            break
+        members = free & agree[i]
+        groups.append(np.median(sub[members], 0))
+        free &= ~members
+    if not groups:
+        return out
+    group_boxes = np.stack(groups)
+    while len(group_boxes) > 1:  # one part's votes split in bands: their boxes overlap
+        pair = _box_iou(group_boxes, group_boxes) - np.eye(len(group_boxes)) * 2
+        a, b = np.unravel_index(int(pair.argmax()), pair.shape)
+        if pair[a, b] <= g.merge_iou:
+            break
+        union = np.concatenate(
+            [
+                group_boxes[a, :2].clip(None, group_boxes[b, :2]),
+                group_boxes[a, 2:].clip(group_boxes[b, 2:]),
+            ]
+        )
+        group_boxes = np.delete(group_boxes, [a, b], 0)
+        group_boxes = np.concatenate([group_boxes, union[None]])
+    while True:
+        best, ok = _assign(boxes, xs, ys, group_boxes, g.iou / 2)
+        count = np.bincount(best[ok], minlength=len(group_boxes))
+        area = np.prod(group_boxes[:, 2:] - group_boxes[:, :2], 1)
+        fill = count / np.maximum(area, 1.0)
+        worst = int(fill.argmin())
+        if fill[worst] >= g.min_fill or len(group_boxes) == 1:
+            break
+        group_boxes = np.delete(group_boxes, worst, 0)  # a sliver between two parts
+    out[ys[ok], xs[ok]] = best[ok] + 1
+    kept = np.zeros_like(out)
+    n = 0
+    for k in range(1, len(groups) + 1):
+        lab, m = ndimage.label(out == k)
+        if m == 0:
+            continue
+        sizes = ndimage.sum_labels(np.ones_like(lab), lab, np.arange(1, m + 1))
+        keep = [j + 1 for j in range(m) if sizes[j] >= min_px or j == int(sizes.argmax())]
+        piece = np.isin(lab, keep)
+        if piece.sum() >= min_px:
+            n += 1
+            kept[piece] = n
+    return kept
+
+
+def _assign(
+    boxes: np.ndarray, xs: np.ndarray, ys: np.ndarray, group_boxes: np.ndarray, least: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's group: of the group boxes that hold the pixel (with a pixel's slack),
+    the one its own box overlaps most; ``ok`` where that overlap is above ``least``."""
+    overlap = _box_iou(boxes, group_boxes)  # (N, K)
+    inside = (
+        (xs[:, None] + 0.5 >= group_boxes[None, :, 0] - 1)
+        & (xs[:, None] + 0.5 <= group_boxes[None, :, 2] + 1)
+        & (ys[:, None] + 0.5 >= group_boxes[None, :, 1] - 1)
+        & (ys[:, None] + 0.5 <= group_boxes[None, :, 3] + 1)
+    )
+    overlap = np.where(inside, overlap, 0.0)
+    best = overlap.argmax(1)
+    return best, overlap[np.arange(len(best)), best] > least
+
+
+def _box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 4), (K, 4) boxes (x0, y0, x1, y1) -> (N, K) IoU."""
+    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
+    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
+    inter = np.clip(w, 0, None) * np.clip(h, 0, None)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    return inter / np.maximum(area_a[:, None] + area_b[None, :] - inter, 1e-9)
 
 
 def _motion_prior(counts: dict[str, dict[str, int]]) -> dict[str, np.ndarray]:

@@ -6,6 +6,11 @@
                                    part, the base or the background) passes here
         motion    (B, 6, S/2, S/2)  logits of generator.motions.MOTIONS per pixel
         category  (B, 8)            logits of CATEGORIES (pooled features)
+        box       (B, 4, S/2, S/2)  (with ``ParserConfig.box``) on a movable part's pixel,
+                                   the distances from it to its part's box (left, top,
+                                   right, bottom), as fractions of the crop side: the
+                                   pixels of one part agree on one box, so adjacent parts
+                                   (two stacked drawers) separate without a visible edge
 
 Encoder: a stride-2 stem then one stage per level (a strided residual block, then
 ``blocks`` residual blocks), widths ``channels`` at 1/2 .. 1/32 of the input. A global
@@ -49,6 +54,7 @@ class ParserConfig:
     n_seg: int = len(SEG_CLASSES)
     dropout: float = 0.1  # before the category head
     upsample: str = "nearest"  # decoder's 2x upsampling: "nearest" (cheap backward) or "bilinear"
+    box: bool = False  # the part-box head (``ParserOutput.box``)
 
     @classmethod
     def from_dict(cls, d: dict) -> ParserConfig:
@@ -65,6 +71,7 @@ class ParserOutput(NamedTuple):
     boundary: torch.Tensor  # (B, 1, S/2, S/2)
     motion: torch.Tensor  # (B, 6, S/2, S/2)
     category: torch.Tensor  # (B, 8)
+    box: torch.Tensor | None = None  # (B, 4, S/2, S/2) distances (>= 0), or None
 
 
 def conv_bn(cin: int, cout: int, stride: int = 1, k: int = 3) -> nn.Sequential:
@@ -120,6 +127,10 @@ class ParserNet(nn.Module):
         self.head = conv_bn(dch[0], dch[0])
         self.seg_head = nn.Conv2d(dch[0], cfg.n_seg + 1, 1)  # classes + boundary
         self.motion_head = nn.Conv2d(dch[0], cfg.n_motions, 1)
+        self.box_head = nn.Conv2d(dch[0], 4, 1) if cfg.box else None
+        if self.box_head is not None:  # softplus(-2) ~ 0.13 of the crop to start
+            nn.init.zeros_(self.box_head.weight)
+            nn.init.constant_(self.box_head.bias, -2.0)
         self.category_head = nn.Sequential(
             nn.Dropout(cfg.dropout), nn.Linear(ch[-1] + ch[-2], cfg.n_categories)
         )
@@ -148,8 +159,9 @@ class ParserNet(nn.Module):
             x = block(torch.cat([x, skip], 1))
         x = self.head(x)
         seg = self.seg_head(x)
+        box = None if self.box_head is None else F.softplus(self.box_head(x).float())
         return ParserOutput(
-            seg[:, : self.cfg.n_seg], seg[:, self.cfg.n_seg :], self.motion_head(x), category
+            seg[:, : self.cfg.n_seg], seg[:, self.cfg.n_seg :], self.motion_head(x), category, box
         )
 
 

@@ -64,6 +64,8 @@ class Args:
     boundary_pos_weight: float = 3.0  # boundary pixels are few
     motion_weight: float = 1.0
     category_weight: float = 0.5
+    box: bool = True  # the part-box head (ParserConfig.box)
+    box_weight: float = 1.0
     label_smoothing: float = 0.05
     ema: float = 0.999
     bf16: bool = True
@@ -86,6 +88,7 @@ def model_config(args: Args) -> ParserConfig:
         channels=ints(args.channels),
         blocks=ints(args.blocks),
         decoder_channels=ints(args.decoder_channels),
+        box=args.box,
     )
 
 
@@ -119,7 +122,28 @@ def losses(out, batch: dict[str, torch.Tensor], args: Args) -> dict[str, torch.T
         + args.motion_weight * motion
         + args.category_weight * category
     )
-    return {"loss": total, "seg": seg, "boundary": boundary, "motion": motion, "category": category}
+    terms = {"seg": seg, "boundary": boundary, "motion": motion, "category": category}
+    if out.box is not None:
+        terms["box"] = box_loss(out.box.float(), batch["box"], batch["seg"] == 2)
+        total = total + args.box_weight * terms["box"]
+    return {"loss": total, **terms}
+
+
+def box_loss(pred: torch.Tensor, target: torch.Tensor, on: torch.Tensor) -> torch.Tensor:
+    """Mean 1 - IoU of the predicted and true part boxes over the movable pixels ``on``
+    (B, h, w); pred and target (B, 4, h, w) distances to the left, top, right, bottom
+    edges. Both boxes hold the pixel, so they always meet (the IoU loss of FCOS)."""
+    if not on.any():
+        return pred.sum() * 0.0
+    p = pred.permute(0, 2, 3, 1)[on]  # (N, 4)
+    t = target.permute(0, 2, 3, 1)[on]
+    area_p = (p[:, 0] + p[:, 2]) * (p[:, 1] + p[:, 3])
+    area_t = (t[:, 0] + t[:, 2]) * (t[:, 1] + t[:, 3])
+    w = torch.minimum(p[:, 0], t[:, 0]) + torch.minimum(p[:, 2], t[:, 2])
+    h = torch.minimum(p[:, 1], t[:, 1]) + torch.minimum(p[:, 3], t[:, 3])
+    inter = w * h
+    iou = inter / (area_p + area_t - inter).clamp_min(1e-8)
+    return (1 - iou).mean()
 
 
 @torch.no_grad()
@@ -131,6 +155,7 @@ def evaluate(model: nn.Module, ds: ParserDataset, args: Args, batch: int = 16) -
     inter = np.zeros(4)  # background, base, part, boundary
     union = np.zeros(4)
     mot_ok = mot_n = cat_ok = 0
+    box_iou, box_n = 0.0, 0
     for s in range(0, n, batch):
         items = [ds[(i, 0)] for i in range(s, min(n, s + batch))]
         b = {k: torch.stack([it[k] for it in items]) for k in items[0]}
@@ -147,6 +172,9 @@ def evaluate(model: nn.Module, ds: ParserDataset, args: Args, batch: int = 16) -
         mot_ok += (out.motion.float().argmax(1)[mv] == b["motion"][mv]).sum().item()
         mot_n += mv.sum().item()
         cat_ok += (out.category.argmax(1) == b["category"]).sum().item()
+        if out.box is not None and mv.any():
+            box_iou += (1 - box_loss(out.box.float(), b["box"], mv).item()) * mv.sum().item()
+            box_n += mv.sum().item()
     iou = inter / np.maximum(union, 1)
     model.train()
     return {
@@ -157,6 +185,7 @@ def evaluate(model: nn.Module, ds: ParserDataset, args: Args, batch: int = 16) -
         "iou_boundary": float(iou[3]),
         "motion_acc": mot_ok / max(1, mot_n),
         "category_acc": cat_ok / max(1, n),
+        **({"box_iou": box_iou / box_n} if box_n else {}),
     }
 
 
@@ -217,9 +246,12 @@ def train(args: Args) -> Path:
     torch.manual_seed(args.seed)
 
     model = ParserNet(model_config(args))
-    if args.init_from:
-        model, _ = load_weights(args.init_from)
-        model.train()
+    if args.init_from:  # its weights where the shapes agree (a new head starts fresh)
+        start, _ = load_weights(args.init_from)
+        own = model.state_dict()
+        same = {k: v for k, v in start.state_dict().items() if k in own and own[k].shape == v.shape}
+        model.load_state_dict(same, strict=False)
+        log.info("init from %s: %d of %d tensors", args.init_from, len(same), len(own))
     model = model.to(device, memory_format=torch.channels_last)
     ema = copy.deepcopy(model).eval()
     for p in ema.parameters():
