@@ -432,7 +432,7 @@ def instances(
 class BoxGrouping:
     """How :func:`box_groups` makes parts of the movable pixels' part-box votes."""
 
-    iou: float = 0.5  # pixels whose boxes overlap more agree on a part
+    iou: float = 0.6  # pixels whose boxes overlap more agree on a part
     merge_iou: float = 0.4  # groups whose boxes overlap more are one part
     min_fill: float = 0.35  # a group must fill this share of its box
     sample: int = 1500  # pixels the mode seeking looks at
