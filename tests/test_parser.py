@@ -305,3 +305,30 @@ def test_a_known_category_weighs_the_motions_by_what_its_parts_do() -> None:
     got = np.array([fridge_part.motion_probs[m] for m in MOTIONS])
     np.testing.assert_allclose(got, want, rtol=1e-5)
     assert parser.label(img, mask, category="desk").parts[0].motion == free.parts[0].motion
+
+
+@pytest.mark.parametrize(
+    ("other_prob", "given", "parts"),
+    [(0.9, None, 1), (0.4, None, 2), (0.9, "cabinet", 2), (0.9, "other", 2)],
+)
+def test_an_object_the_parser_reads_as_other_has_no_moving_parts(
+    monkeypatch: pytest.MonkeyPatch, other_prob: float, given: str | None, parts: int
+) -> None:
+    """Only the parser's own confident "other" empties the parts; a given category wins."""
+    from generator.parser.inference import PixelMaps
+
+    cls = np.zeros((40, 40), int)
+    cls[5:35, 5:35] = 1
+    cls[10:30, 10:30] = 2  # one movable part
+    category = np.full(len(CATEGORIES), (1 - other_prob) / (len(CATEGORIES) - 1))
+    category[CATEGORIES.index("other")] = other_prob
+    maps = PixelMaps(
+        _seg_probs(cls, np.zeros((40, 40), np.float32)),
+        np.full((len(MOTIONS), 40, 40), 1 / len(MOTIONS), np.float32),
+        category,
+    )
+    parser = PhotoParser(ParserNet(TINY))
+    monkeypatch.setattr(parser, "pixel_maps", lambda image, alpha=None: maps)
+    parsed = parser.parse(np.zeros((40, 40, 3), np.uint8), category=given)
+    assert len(np.unique(parsed.mask)) == parts + 1  # background, base[, the part]
+    assert len(parsed.parts) == parts - 1 and (parsed.mask[5:35, 5:35] > 0).all()

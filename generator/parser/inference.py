@@ -448,8 +448,8 @@ def box_groups(
     them, whose box is their median; repeated while a group would hold ``min_px``
     pixels; two groups whose boxes overlap more than ``merge_iou`` are one (adjacent parts'
     boxes hardly overlap; one part's votes may split in bands). Every movable pixel then
-    joins, of the group boxes that hold it, the one its
-    own box overlaps most (IoU above ``iou`` / 2); a group whose pixels fill less than
+    joins, of the group boxes that hold it, the one its own box overlaps most (IoU above
+    ``iou`` / 2); a group whose pixels fill less than
     ``min_fill`` of its box (a sliver where the votes of two parts blend) is dropped and
     its pixels go again; a group keeps its largest connected piece and any other piece
     of at least ``min_px`` pixels."""
@@ -458,8 +458,8 @@ def box_groups(
     out = np.zeros(movable.shape, np.int32)
     if len(ys) < min_px:
         return out
-    b = box[:, ys, xs]
-    boxes = np.stack([xs + 0.5 - b[0], ys + 0.5 - b[1], xs + 0.5 + b[2], ys + 0.5 + b[3]], 1)
+    d = box[:, ys, xs]  # each pixel's distances to its box's left, top, right, bottom
+    boxes = np.stack([xs + 0.5 - d[0], ys + 0.5 - d[1], xs + 0.5 + d[2], ys + 0.5 + d[3]], 1)
     step = max(1, int(np.ceil(len(ys) / g.sample)))
     sub = boxes[::step]
     agree = _box_iou(sub, sub) > g.iou
@@ -501,7 +501,7 @@ def box_groups(
     out[ys[ok], xs[ok]] = best[ok] + 1
     kept = np.zeros_like(out)
     n = 0
-    for k in range(1, len(groups) + 1):
+    for k in range(1, len(group_boxes) + 1):
         lab, m = ndimage.label(out == k)
         if m == 0:
             continue
