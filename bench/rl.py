@@ -21,29 +21,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def plot(rows: list[dict], path: Path) -> bool:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return False
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot([r["wall_seconds"] / 60 for r in rows], [r["success_rate"] for r in rows], marker="o")
-    ax.set_xlabel("wall-clock (min)")
-    ax.set_ylabel("held-out success rate")
-    ax.set_ylim(-0.02, 1.02)
-    ax.axhline(0.6, color="grey", linestyle="--", linewidth=1, label="target 0.6 in 60 min")
-    ax.legend(loc="upper left")
-    ax.set_title("PPO OpenDrawer-v0: 20 train / 10 held-out drawers")
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return True
-
-
 def by_kind(episodes: list[dict]) -> dict[str, str]:
     """Successes / episodes and grasped episodes per handle kind."""
     out: dict[str, list[int]] = {}
@@ -81,7 +58,7 @@ def _overrides(items: list[str]) -> dict:
 def main() -> None:
     from sim import build_procedural
 
-    from tasks.train import Args, evaluate, train
+    from tasks.train import Args, evaluate, plot_curve, train
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="runs/bench_rl")
@@ -165,7 +142,9 @@ def main() -> None:
             {
                 "bench": "rl",
                 "curve_csv": str(curve),
-                "curve_png": str(png) if plot(rows, png) else None,
+                "curve_png": str(png)
+                if plot_curve(rows, png, "PPO OpenDrawer-v0: 20 train / 10 held-out drawers")
+                else None,
                 "last_curve_point": rows[-1] if rows else None,
                 "final_policy_held_out": {
                     "episodes": a.final_episodes,

@@ -923,20 +923,31 @@ def train(
     assets: str = typer.Option(..., "--assets", help="Folder of built assets or catalog file."),
     steps: int = typer.Option(200_000, "--steps", help="Environment steps."),
     eval_assets: str = typer.Option(None, help="Held-out assets for periodic evaluation."),
+    category: str = typer.Option(None, help="Only assets of this category."),
     num_envs: int = typer.Option(4, help="Parallel envs (processes with --vector async)."),
     vector: str = typer.Option("async", help="CPU: async (a process per env) or sync."),
     control_mode: str = typer.Option(
         "pd_ee_delta_pos", help="pd_ee_delta_pos, pd_ee_delta_pose or pd_joint_delta_pos."
     ),
     minutes: float = typer.Option(None, help="Stop after this wall-clock (then save)."),
+    episode_steps: int = typer.Option(
+        None, help="Training episode length (default: the recipe's)."
+    ),
+    eval_every: int = typer.Option(20_000, help="Env steps between held-out evaluations."),
+    eval_episodes: int = typer.Option(10, help="Episodes per periodic evaluation."),
+    video_episodes: int = typer.Option(2, help="Held-out episodes recorded at the end."),
+    resume: bool = typer.Option(False, "--resume", help="Go on from OUT/checkpoint."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
-        "runs/ppo", help="Run folder: policy.zip, progress.csv, eval.csv, TensorBoard."
+        "runs/ppo",
+        help="Run folder: policy.zip, curve.png, eval.csv, progress.csv, videos/, checkpoint/.",
     ),
     seed: int = typer.Option(0),
 ) -> None:
-    """Train a PPO policy (stable-baselines3) on a drawer/door task."""
-    from tasks.train import Args
+    """Train a PPO policy (stable-baselines3) on a drawer/door task: resumable (--resume),
+    the held-out curve as eval.csv and curve.png, videos of held-out episodes at the end."""
+    from tasks.train import Args, recipe_episode_steps
     from tasks.train import train as run_training
 
     args = Args(
@@ -944,10 +955,17 @@ def train(
         assets=assets,
         total_timesteps=steps,
         eval_assets=eval_assets,
+        category=category,
         num_envs=num_envs,
         vector=vector,
         control_mode=control_mode,
         max_minutes=minutes,
+        max_episode_steps=episode_steps or recipe_episode_steps(task),
+        eval_every=eval_every,
+        eval_episodes=eval_episodes,
+        video_episodes=video_episodes,
+        resume=resume,
+        progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,
         seed=seed,
@@ -962,18 +980,45 @@ def eval_policy(
     policy: Path = typer.Argument(..., help="policy.zip written by pact train."),
     task: str = typer.Option("OpenDrawer-v0", "--task"),
     assets: str = typer.Option(..., "--assets", help="Held-out assets (folder or catalog)."),
-    episodes: int = typer.Option(10),
+    episodes: int = typer.Option(50, help="Episodes (each samples an asset and a part)."),
+    category: str = typer.Option(None, help="Only assets of this category."),
+    seed: int = typer.Option(10_000, help="Episode k is seeded SEED + k."),
     video_dir: Path = typer.Option(None, help="Record one video per episode here."),
+    out: Path = typer.Option(None, help="Write the result (every episode) as JSON here."),
 ) -> None:
-    """Success rate and return of a trained policy on held-out assets."""
+    """Success of a trained policy on held-out assets, per category and part kind; for
+    the failures, how far the part opened."""
     import json
+
+    from rich.table import Table
 
     from tasks.train import evaluate
 
     if not policy.is_file():
         raise fail(f"{policy}: no such policy file (pact train writes OUT/policy.zip)")
-    result = evaluate(str(policy), task, assets, episodes=episodes, video_dir=video_dir)
-    print(json.dumps(result, indent=2, default=str))
+    result = evaluate(
+        str(policy), task, assets, episodes=episodes, seed=seed, video_dir=video_dir,
+        category=category,
+    )  # fmt: skip
+    for key, rows in (("category", result["by_category"]), ("part kind", result["by_part_kind"])):
+        table = Table(title=f"{task}: success per {key}")
+        for col in (key, "episodes", "opened", "rate", "failures opened (mean fraction)"):
+            table.add_column(col)
+        for name, r in rows.items():
+            failed = r["failed_open_fraction"]
+            table.add_row(
+                name, str(r["episodes"]), str(r["success"]), f"{r['success_rate']:.0%}",
+                "-" if failed is None else f"{failed:.2f}",
+            )  # fmt: skip
+        wide_console().print(table)
+    console.print(
+        f"success {result['success_rate']:.0%} of {episodes} episodes "
+        f"(grasped in {result['grasp_rate']:.0%}), mean return {result['mean_return']:.2f}"
+    )
+    if out is not None:
+        from generator.atomic_files import atomic_write_bytes
+
+        atomic_write_bytes(out, json.dumps(result, indent=2).encode())
 
 
 @app.command("train-gen")

@@ -9,7 +9,10 @@ with ``num_envs`` sub-scenes on ``physx_cuda`` behind ManiSkill's SB3 wrapper.
 Logs (TensorBoard and CSV in ``out_dir``): SB3's rollout/ep_rew_mean and
 rollout/success_rate, and every ``eval_every`` steps eval/success_rate and
 eval/return on held-out assets (also ``eval.csv`` with wall-clock seconds).
-The policy is saved as ``out_dir/policy.zip``.
+The policy is saved as ``out_dir/policy.zip`` at every evaluation, with the learning
+curve (``curve.png``) and a checkpoint to resume from (``checkpoint/``: the model with
+its optimizer, the observation normalizer, the steps and wall-clock so far); the last
+evaluation episodes are recorded as videos (``videos/``).
 
     python -m tasks.train --assets out/train --eval-assets out/test --total-timesteps 200000
 """
@@ -20,6 +23,7 @@ import csv
 import gc
 import json
 import logging
+import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -109,6 +113,27 @@ class Args:
     """torch device of the learner"""
     torch_threads: int = 1
     """torch threads per process, learner and each env worker (0: torch's default)"""
+    resume: bool = False
+    """continue the run in out_dir from its last checkpoint (out_dir/checkpoint), if any"""
+    progress_bar: bool = True
+    """show a progress bar of the env steps (SB3's, drawn with rich)"""
+    video_episodes: int = 2
+    """held-out episodes recorded in out_dir/videos when training ends (0: none)"""
+
+
+#: Training episode length of the recipe per task, in policy steps at 10 Hz: a drawer
+#: is pulled in 3 s; a door's handle travels an arc, 5 s.
+RECIPE_EPISODE_STEPS = {
+    "OpenDrawer-v0": 30,
+    "CloseDrawer-v0": 30,
+    "OpenDoor-v0": 50,
+    "CloseDoor-v0": 50,
+}
+
+
+def recipe_episode_steps(env_id: str) -> int:
+    """The recipe's training episode length for ``env_id`` (:data:`RECIPE_EPISODE_STEPS`)."""
+    return RECIPE_EPISODE_STEPS.get(env_id, Args.max_episode_steps)
 
 
 # --------------------------------------------------------------------------- envs
@@ -402,45 +427,70 @@ def evaluate(
             env_kwargs.setdefault(k, v)
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
     norm = obs_norm or (lambda o: o)
-    successes, returns, ids, grasped, parts = [], [], [], [], []
+    rows: list[dict[str, Any]] = []
     try:
         for k in range(episodes):
             obs, _ = env.reset(seed=seed + k)
             frames = [env.render()] if video_dir else []
-            done, ret, info, held = False, 0.0, {}, False
+            done, ret, info, held, widest = False, 0.0, {}, False, 0.0
             while not done:
                 action, _ = policy.predict(norm(obs), deterministic=deterministic)
                 obs, r, term, trunc, info = env.step(action)
                 ret += r
                 held = held or bool(info.get("is_grasped", False))
+                widest = max(widest, float(info.get("open_fraction", 0.0)))
                 done = term or trunc
                 if video_dir:
                     frames.append(env.render())
-            successes.append(bool(info.get("success", False)))
-            returns.append(ret)
-            grasped.append(held)
-            ids.append(env.unwrapped.episode_assets[0].id)
-            parts.append(env.unwrapped.episode_parts[0])
+            asset, part = env.unwrapped.episode_assets[0], env.unwrapped.episode_parts[0]
+            rows.append(
+                {
+                    "asset": asset.id,
+                    "category": asset.category or "unknown",
+                    "part": part.name,
+                    "part_kind": part.kind,
+                    "handle_kind": part.handle_kind,
+                    "success": bool(info.get("success", False)),
+                    "return": float(ret),
+                    "grasped": held,
+                    "open_fraction": round(float(info.get("open_fraction", 0.0)), 4),
+                    "max_open_fraction": round(widest, 4),
+                }
+            )
             if video_dir:
-                write_video(frames, Path(video_dir) / f"episode_{k:03d}_{ids[-1]}")
+                write_video(frames, Path(video_dir) / f"episode_{k:03d}_{asset.id}_{part.name}")
     finally:
         env.close()
+
+    def mean(key: str) -> float:
+        return float(np.mean([r[key] for r in rows])) if rows else 0.0
+
     return {
-        "success_rate": float(np.mean(successes)) if successes else 0.0,
-        "mean_return": float(np.mean(returns)) if returns else 0.0,
-        "grasp_rate": float(np.mean(grasped)) if grasped else 0.0,
-        "episodes": [
-            {
-                "asset": a,
-                "part": p.name,
-                "handle_kind": p.handle_kind,
-                "success": s,
-                "return": float(r),
-                "grasped": g,
-            }
-            for a, p, s, r, g in zip(ids, parts, successes, returns, grasped, strict=True)
-        ],
+        "success_rate": mean("success"),
+        "mean_return": mean("return"),
+        "grasp_rate": mean("grasped"),
+        "by_category": success_table(rows, "category"),
+        "by_part_kind": success_table(rows, "part_kind"),
+        "episodes": rows,
     }
+
+
+def success_table(episodes: list[dict[str, Any]], key: str) -> dict[str, dict[str, Any]]:
+    """Per value of ``key`` (category, part_kind, ...): episodes, successes, success rate,
+    and how far the failures opened the part (mean of the episodes' last open fraction,
+    None without failures)."""
+    table: dict[str, dict[str, Any]] = {}
+    for value in sorted({e[key] for e in episodes}):
+        group = [e for e in episodes if e[key] == value]
+        failed = [e["open_fraction"] for e in group if not e["success"]]
+        ok = sum(e["success"] for e in group)
+        table[value] = {
+            "episodes": len(group),
+            "success": ok,
+            "success_rate": round(ok / len(group), 4),
+            "failed_open_fraction": round(float(np.mean(failed)), 4) if failed else None,
+        }
+    return table
 
 
 def _episode_steps(env_id: str, n: int | None, control_freq: int) -> dict[str, int]:
@@ -514,8 +564,79 @@ def set_initial_action_mean(model: Any, index: int, value: float) -> None:
         model.policy.action_net.bias[index] = float(value)
 
 
+def plot_curve(rows: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """The held-out success rate against wall-clock minutes as a PNG (matplotlib); False
+    when matplotlib is missing."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 4))
+    minutes = [float(r["wall_seconds"]) / 60 for r in rows]
+    ax.plot(minutes, [float(r["success_rate"]) for r in rows], marker="o")
+    ax.set_xlabel("wall-clock (min)")
+    ax.set_ylabel("held-out success rate")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True
+
+
+@dataclass
+class Checkpoint:
+    """Where a run resumes from: ``out_dir/checkpoint/`` holds the PPO model (with its
+    optimizer), the observation normalizer and ``state.json`` (env steps and wall-clock
+    seconds so far)."""
+
+    folder: Path
+
+    @property
+    def model(self) -> Path:
+        return self.folder / "model.zip"
+
+    @property
+    def normalizer(self) -> Path:
+        return self.folder / "vec_normalize.pkl"
+
+    @property
+    def state(self) -> Path:
+        return self.folder / "state.json"
+
+    def exists(self) -> bool:
+        return self.model.is_file() and self.state.is_file()
+
+    def seconds(self) -> float:
+        return float(json.loads(self.state.read_text())["wall_seconds"])
+
+    def save(self, model: Any, venv: Any, wall_seconds: float) -> None:
+        """Model, normalizer, then the state last: a checkpoint cut off half-written
+        keeps the previous state."""
+        from generator.atomic_files import atomic_write_bytes
+
+        self.folder.mkdir(parents=True, exist_ok=True)
+        tmp = self.folder / "model.tmp.zip"
+        model.save(tmp)
+        tmp.replace(self.model)
+        if hasattr(venv, "obs_rms"):
+            venv.save(str(self.folder / "vec_normalize.tmp.pkl"))
+            (self.folder / "vec_normalize.tmp.pkl").replace(self.normalizer)
+        state = {"num_timesteps": int(model.num_timesteps), "wall_seconds": round(wall_seconds, 2)}
+        atomic_write_bytes(self.state, json.dumps(state).encode())
+
+
 def train(args: Args) -> dict[str, Any]:
-    """Train PPO per ``args``; return paths and the last evaluation."""
+    """Train PPO per ``args``; return paths and the last evaluation.
+
+    With ``args.resume`` and a checkpoint in ``out_dir`` the run goes on from it (steps,
+    wall-clock limit, learning-rate schedule and curve continue; the random streams
+    start afresh, so a resumed run is not step-for-step the uninterrupted one).
+    """
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.logger import configure
@@ -524,56 +645,82 @@ def train(args: Args) -> dict[str, Any]:
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     set_torch_threads(args.torch_threads)
+    ckpt = Checkpoint(out / "checkpoint")
+    resuming = args.resume and ckpt.exists()
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
+    schedule = learning_rate_schedule(args)
     if args.normalize_obs:
-        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=args.gamma)
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        learning_rate=learning_rate_schedule(args),
-        n_steps=args.n_steps,
-        batch_size=args.batch_size,
-        n_epochs=args.n_epochs,
-        gamma=args.gamma,
-        gae_lambda=args.gae_lambda,
-        ent_coef=args.ent_coef,
-        target_kl=args.target_kl,
-        seed=args.seed,
-        device=args.device,
-        policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
-        verbose=0,
-    )
-    if args.gripper_init is not None:
-        set_initial_action_mean(model, -1, args.gripper_init)
-    if args.gripper_log_std_init is not None:
-        set_initial_log_std(model, -1, args.gripper_log_std_init)
+        if resuming and ckpt.normalizer.is_file():
+            venv = VecNormalize.load(str(ckpt.normalizer), venv)
+        else:
+            venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=args.gamma)
+    if resuming:
+        model = PPO.load(
+            ckpt.model, env=venv, device=args.device,
+            custom_objects={"learning_rate": schedule, "lr_schedule": schedule},
+        )  # fmt: skip
+        log.info("resuming %s at %d steps", out, model.num_timesteps)
+    else:
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            learning_rate=schedule,
+            n_steps=args.n_steps,
+            batch_size=args.batch_size,
+            n_epochs=args.n_epochs,
+            gamma=args.gamma,
+            gae_lambda=args.gae_lambda,
+            ent_coef=args.ent_coef,
+            target_kl=args.target_kl,
+            seed=args.seed,
+            device=args.device,
+            policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
+            verbose=0,
+        )
+        if args.gripper_init is not None:
+            set_initial_action_mean(model, -1, args.gripper_init)
+        if args.gripper_log_std_init is not None:
+            set_initial_log_std(model, -1, args.gripper_log_std_init)
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
-    t0 = time.time()
+    if not resuming and eval_csv.exists():
+        eval_csv.unlink()
     history: list[dict[str, Any]] = []
+    if resuming and eval_csv.exists():
+        with open(eval_csv, newline="") as f:
+            history = list(csv.DictReader(f))
+    # wall-clock of the whole run, across resumes
+    t0 = time.time() - (ckpt.seconds() if resuming else 0.0)
+    eval_kwargs: dict[str, Any] = dict(
+        category=args.category,
+        control_mode=args.control_mode,
+        sim_config={"control_freq": args.control_freq},
+        **_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
+    )
 
     def current_norm() -> ObsNorm | None:
         return ObsNorm.from_vec_normalize(venv) if args.normalize_obs else None
 
+    def save_policy() -> None:
+        model.save(out / "policy")  # the latest policy, usable while training runs
+        if args.normalize_obs:
+            current_norm().save(out / "obs_norm.npz")
+        ckpt.save(model, venv, time.time() - t0)
+
     class PeriodicEval(BaseCallback):
         def __init__(self) -> None:
             super().__init__()
-            self.next_eval = 0
+            self.next_eval = model.num_timesteps if not resuming else (
+                model.num_timesteps + args.eval_every
+            )  # fmt: skip
 
         def run_eval(self) -> None:
             res = evaluate(
-                self.model,
-                args.env_id,
-                eval_assets,
-                args.eval_episodes,
-                obs_norm=current_norm(),
-                category=args.category,
-                control_mode=args.control_mode,
-                sim_config={"control_freq": args.control_freq},
-                **_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
-            )
+                self.model, args.env_id, eval_assets, args.eval_episodes,
+                obs_norm=current_norm(), **eval_kwargs,
+            )  # fmt: skip
             row = {
                 "timesteps": self.num_timesteps,
                 "wall_seconds": round(time.time() - t0, 2),
@@ -581,9 +728,7 @@ def train(args: Args) -> dict[str, Any]:
                 "mean_return": res["mean_return"],
             }
             history.append(row)
-            self.model.save(out / "policy")  # the latest policy, usable while training runs
-            if args.normalize_obs:
-                current_norm().save(out / "obs_norm.npz")
+            save_policy()
             self.logger.record("eval/success_rate", res["success_rate"])
             self.logger.record("eval/return", res["mean_return"])
             new = not eval_csv.exists()
@@ -592,6 +737,7 @@ def train(args: Args) -> dict[str, Any]:
                 if new:
                     w.writeheader()
                 w.writerow(row)
+            plot_curve(history, out / "curve.png", f"PPO {args.env_id} on {args.assets}")
             log.info("eval at %d steps: %s", self.num_timesteps, row)
 
         def _on_step(self) -> bool:
@@ -606,23 +752,42 @@ def train(args: Args) -> dict[str, Any]:
             return True
 
         def _on_training_end(self) -> None:
-            if not history or history[-1]["timesteps"] != self.num_timesteps:
+            last = int(history[-1]["timesteps"]) if history else -1
+            if last != self.num_timesteps:
                 self.run_eval()
 
-    if eval_csv.exists():
-        eval_csv.unlink()
+    remaining = args.total_timesteps - model.num_timesteps
     try:
-        model.learn(total_timesteps=args.total_timesteps, callback=PeriodicEval())
-        model.save(out / "policy")
-        if args.normalize_obs:
-            current_norm().save(out / "obs_norm.npz")
+        if remaining > 0 and (args.max_minutes is None or time.time() - t0 < 60 * args.max_minutes):
+            model.learn(
+                total_timesteps=remaining,
+                callback=PeriodicEval(),
+                reset_num_timesteps=not resuming,
+                progress_bar=args.progress_bar,
+            )
+        save_policy()
+    except KeyboardInterrupt:
+        save_policy()  # resume with --resume
+        raise
     finally:
         venv.close()
+    videos = []
+    if args.video_episodes > 0:
+        shutil.rmtree(out / "videos", ignore_errors=True)
+        recorded = evaluate(
+            out / "policy.zip", args.env_id, eval_assets, args.video_episodes,
+            video_dir=out / "videos", seed=20_000, category=args.category,
+        )  # fmt: skip
+        videos = sorted(str(p) for p in (out / "videos").iterdir())
+        log.info("videos of %d held-out episodes: %s", len(recorded["episodes"]), videos)
     return {
         "policy": str(out / "policy.zip"),
         "progress_csv": str(out / "progress.csv"),
         "eval_csv": str(eval_csv),
+        "curve_png": str(out / "curve.png"),
+        "videos": videos,
         "last_eval": history[-1] if history else None,
+        "timesteps": int(model.num_timesteps),
         "seconds": time.time() - t0,
     }
 

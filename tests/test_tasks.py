@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -10,6 +12,7 @@ import pytest
 import torch
 
 import tasks  # noqa: F401  (registers the envs)
+from asset_pipeline.assets.built_asset import MovablePart
 
 
 @pytest.fixture(scope="module")
@@ -236,8 +239,11 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
         batch_size=125,
         n_epochs=2,
         max_episode_steps=50,
+        eval_max_episode_steps=5,
         eval_every=0,
         eval_episodes=1,
+        video_episodes=0,
+        progress_bar=False,
         out_dir=str(tmp_path / "run"),
     )
     out = train(args)
@@ -258,6 +264,44 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
     res = evaluate(str(run / "policy.zip"), "OpenDrawer-v0", str(procedural_assets), episodes=1)
     assert len(res["episodes"]) == 1 and np.isfinite(res["mean_return"])
     assert res["grasp_rate"] == float(res["episodes"][0]["grasped"])
+    # per category and part kind: the desk is the only asset with drawers
+    ep = res["episodes"][0]
+    assert ep["category"] == "desk" and ep["part_kind"] == "drawer"
+    assert 0.0 <= ep["open_fraction"] <= ep["max_open_fraction"] + 1e-6
+    assert res["by_category"]["desk"]["episodes"] == 1
+    assert res["by_part_kind"]["drawer"]["success"] == int(ep["success"])
+    assert (run / "curve.png").stat().st_size > 0
+    state = json.loads((run / "checkpoint" / "state.json").read_text())
+    assert state["num_timesteps"] == 500
+
+    # resume: the run goes on from its checkpoint to the new total, the curve continues
+    resumed = train(
+        replace(args, total_timesteps=750, resume=True, video_episodes=1, vector="sync")
+    )
+    assert resumed["timesteps"] == 750
+    rows = (run / "eval.csv").read_text().splitlines()
+    assert [int(r.split(",")[0]) for r in rows[1:]] == [500, 750]
+    assert json.loads((run / "checkpoint" / "state.json").read_text())["num_timesteps"] == 750
+    assert resumed["seconds"] >= float(rows[1].split(",")[1])  # wall-clock adds up
+    videos = list((run / "videos").iterdir())
+    assert len(videos) == 1 and videos[0].name.startswith("episode_000_desk")
+    assert resumed["videos"] == [str(videos[0])]
+
+    # pact eval-policy: tables per category and part kind, every episode as JSON
+    from typer.testing import CliRunner
+
+    from pact_cli.main import app
+
+    out_json = tmp_path / "eval.json"
+    cli = CliRunner().invoke(
+        app,
+        ["eval-policy", str(run / "policy.zip"), "--assets", str(procedural_assets),
+         "--episodes", "2", "--out", str(out_json)],
+    )  # fmt: skip
+    assert cli.exit_code == 0, cli.output
+    assert "success per category" in cli.output and "success per part kind" in cli.output
+    result = json.loads(out_json.read_text())
+    assert len(result["episodes"]) == 2 and set(result["by_category"]) == {"desk"}
 
 
 def test_obs_norm_matches_vec_normalize():
@@ -410,3 +454,44 @@ def test_require_grasp_withholds_the_grasp_term_from_a_hook(procedural_assets: P
             env.close()
     assert rewards[False] == pytest.approx(3.2, abs=1e-3)
     assert rewards[True] == pytest.approx(2.2, abs=1e-3)
+
+
+def _part(joint_type: str, axis, origin, handle) -> MovablePart:
+    return MovablePart(
+        name="p", joint_name="j", joint_type=joint_type, lower=0.0, upper=1.0, axis=axis,
+        origin=origin, handle_link=(0.0, 0.0, 0.0), handle_object=handle,
+        handle_axis=(0.0, 1.0, 0.0), handle_kind="bar",
+    )  # fmt: skip
+
+
+def test_part_kind_from_joint_and_handle() -> None:
+    """The part kinds the policy evaluation reports, on hand-placed hinges (object frame:
+    +x front, +z up)."""
+    assert _part("prismatic", (1, 0, 0), (0.3, 0, 0.5), (0.32, 0, 0.5)).kind == "drawer"
+    # a fridge door hinged on its left edge, handle at the right
+    assert _part("revolute", (0, 0, -1), (0.3, -0.3, 1.0), (0.33, 0.25, 1.0)).kind == "side_door"
+    # an oven door: hinge along y at the bottom of the front, handle 0.4 m above it
+    assert _part("revolute", (0, 1, 0), (0.3, 0, 0.2), (0.35, 0, 0.6)).kind == "bottom_door"
+    # a top-loader lid hinged at its back edge, handle at the front, level with the hinge
+    assert _part("revolute", (0, -1, 0), (-0.25, 0, 0.9), (0.25, 0, 0.92)).kind == "lid"
+    # a lid hinged at its left edge (axis along the front's normal), handle at the right
+    assert _part("revolute", (1, 0, 0), (0.0, -0.3, 0.9), (0.0, 0.25, 0.92)).kind == "lid"
+    # a flap hinged at its top edge
+    assert _part("revolute", (0, -1, 0), (0.3, 0, 1.0), (0.33, 0, 0.7)).kind == "top_flap"
+
+
+def test_success_table_counts_and_failure_opening() -> None:
+    from tasks.train import success_table
+
+    episodes = [
+        {"category": "oven", "success": True, "open_fraction": 0.9},
+        {"category": "oven", "success": False, "open_fraction": 0.2},
+        {"category": "oven", "success": False, "open_fraction": 0.4},
+        {"category": "desk", "success": True, "open_fraction": 0.8},
+    ]
+    table = success_table(episodes, "category")
+    assert list(table) == ["desk", "oven"]
+    assert table["oven"] == {
+        "episodes": 3, "success": 1, "success_rate": 0.3333, "failed_open_fraction": 0.3,
+    }  # fmt: skip
+    assert table["desk"]["success_rate"] == 1.0 and table["desk"]["failed_open_fraction"] is None

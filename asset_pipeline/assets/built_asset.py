@@ -29,6 +29,11 @@ import trimesh
 MOVABLE_JOINT_TYPES = ("prismatic", "revolute", "continuous")
 #: What a handle can be (``none``: no modelled handle, a point on the front face).
 HANDLE_KINDS = ("bar", "knob", "recessed", "none")
+#: How a movable part moves, as the tasks report it: ``drawer`` (slides), ``side_door``
+#: (vertical hinge), ``bottom_door`` (horizontal hinge below the handle: an oven or
+#: dishwasher door), ``lid`` (horizontal hinge level with the handle: a top lid hinged at
+#: its back), ``top_flap`` (horizontal hinge above the handle).
+PART_KINDS = ("drawer", "side_door", "bottom_door", "lid", "top_flap")
 
 
 @dataclass
@@ -191,6 +196,24 @@ class MovablePart:
     @property
     def range(self) -> float:
         return self.upper - self.lower
+
+    @property
+    def kind(self) -> str:
+        """One of :data:`PART_KINDS`, from the joint and where the handle is from the hinge."""
+        if self.joint_type == "prismatic":
+            return "drawer"
+        axis = np.asarray(self.axis, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        if abs(axis[2]) >= max(abs(axis[0]), abs(axis[1])):
+            return "side_door"
+        # the handle's offset from the hinge line: up (bottom door), down (top flap) or
+        # level (a lid, hinged at an edge of its top)
+        d = np.asarray(self.handle_object, dtype=float) - np.asarray(self.origin, dtype=float)
+        d = d - (d @ axis) * axis
+        level = float(np.linalg.norm(d[:2]))
+        if d[2] > level:
+            return "bottom_door"
+        return "top_flap" if d[2] < -level else "lid"
 
     @property
     def handle_kind_onehot(self) -> tuple[float, ...]:
