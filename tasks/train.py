@@ -737,7 +737,8 @@ def train(args: Args) -> dict[str, Any]:
                 if new:
                     w.writeheader()
                 w.writerow(row)
-            plot_curve(history, out / "curve.png", f"PPO {args.env_id} on {args.assets}")
+            title = f"PPO {args.env_id}: {Path(args.assets).name}, {args.eval_episodes} episodes a point"
+            plot_curve(history, out / "curve.png", title)
             log.info("eval at %d steps: %s", self.num_timesteps, row)
 
         def _on_step(self) -> bool:

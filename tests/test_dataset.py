@@ -274,3 +274,21 @@ def test_build_is_deterministic_and_resumable(built, tmp_path):
 
     with pytest.raises(DatasetError, match="other arguments"):
         build_dataset(again, 5, 6, seed=4, progress=False, **kwargs)
+
+
+def test_cameras_render_segmentation_after_maniskill_changed_the_shader(render_device) -> None:
+    """ManiSkill sets the process-wide camera shader to its minimal pack (no Segmentation
+    picture, 8-bit colour) when it makes a camera; the project's scenes put SAPIEN's
+    own pack back, so a render after a task's video still has both pictures."""
+    import sapien
+
+    from asset_pipeline.simulation.sapien_scenes import make_scene
+
+    sapien.render.set_camera_shader_dir("minimal")  # what ManiSkill's set_shader_pack does
+    sapien.render.set_picture_format("Color", "r8g8b8a8unorm")
+    scene = make_scene(render=True)
+    camera = scene.add_camera("probe", 16, 16, 1.0, 0.01, 10.0)
+    scene.update_render()
+    camera.take_picture()
+    assert camera.get_picture("Color").dtype == np.float32
+    assert camera.get_picture("Segmentation").shape[:2] == (16, 16)

@@ -495,3 +495,21 @@ def test_success_table_counts_and_failure_opening() -> None:
         "episodes": 3, "success": 1, "success_rate": 0.3333, "failed_open_fraction": 0.3,
     }  # fmt: skip
     assert table["desk"]["success_rate"] == 1.0 and table["desk"]["failed_open_fraction"] is None
+
+
+@pytest.mark.parametrize("task", ["OpenDrawer-v0", "OpenDoor-v0"])
+def test_shipped_policy_runs_on_built_assets(task: str, procedural_assets: Path) -> None:
+    """policies/<task>/policy.zip (what `pact eval-policy` runs on a fresh clone) loads
+    with its observation normalization and acts in the current task: its observation
+    layout still matches the env's."""
+    from tasks.train import evaluate, load_policy
+
+    policy = Path(__file__).resolve().parents[1] / "policies" / task / "policy.zip"
+    model, norm, saved = load_policy(policy)
+    assert norm is not None and saved["env_id"] == task
+    res = evaluate(str(policy), task, str(procedural_assets), episodes=1, max_episode_steps=3)
+    ep = res["episodes"][0]
+    assert ep["part_kind"] in (
+        ("drawer",) if task == "OpenDrawer-v0" else ("side_door", "bottom_door")
+    )
+    assert np.isfinite(res["mean_return"])

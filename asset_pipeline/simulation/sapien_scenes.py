@@ -58,6 +58,9 @@ def make_scene(timestep: float = 1 / 240, render: bool | None = None) -> sapien.
     configure_vulkan()
     import sapien
 
+    from generator.data.render import use_sapien_camera_defaults
+
+    use_sapien_camera_defaults()
     physx = sapien.physx.PhysxCpuSystem()
     render_system = None
     if render is not False:

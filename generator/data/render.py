@@ -184,7 +184,21 @@ def sample_view(
 _KEEPALIVE: list[sapien.render.RenderSystem] = []
 
 
+def use_sapien_camera_defaults() -> None:
+    """Cameras made from now on use SAPIEN's own shader pack and float picture formats.
+
+    The setting is process-wide, and ManiSkill changes it when it makes its cameras
+    (its "minimal" pack: no ``Segmentation`` picture, 8-bit colour), so a process that
+    ran a ManiSkill env with a camera would otherwise render this project's images
+    with ManiSkill's pack.
+    """
+    sapien.render.set_camera_shader_dir("default")
+    for picture in ("Color", "ColorRaw", "PositionSegmentation"):
+        sapien.render.set_picture_format(picture, "r32g32b32a32sfloat")
+
+
 def render_system() -> sapien.render.RenderSystem:
+    use_sapien_camera_defaults()
     try:
         if not _KEEPALIVE:
             _KEEPALIVE.append(sapien.render.RenderSystem())
