@@ -580,7 +580,7 @@ def plot_curve(rows: list[dict[str, Any]], path: Path, title: str) -> bool:
     ax.set_xlabel("wall-clock (min)")
     ax.set_ylabel("held-out success rate")
     ax.set_ylim(-0.02, 1.02)
-    ax.set_title(title)
+    ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
