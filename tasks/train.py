@@ -704,17 +704,17 @@ def train(args: Args) -> dict[str, Any]:
         return ObsNorm.from_vec_normalize(venv) if args.normalize_obs else None
 
     def save_policy() -> None:
-        model.save(out / "policy")  # the latest policy, usable while training runs
+        ckpt.save(model, venv, time.time() - t0)
+        # the latest policy, usable while training runs: the checkpoint's model
+        shutil.copyfile(ckpt.model, out / "policy.zip")
         if args.normalize_obs:
             current_norm().save(out / "obs_norm.npz")
-        ckpt.save(model, venv, time.time() - t0)
 
     class PeriodicEval(BaseCallback):
         def __init__(self) -> None:
             super().__init__()
-            self.next_eval = model.num_timesteps if not resuming else (
-                model.num_timesteps + args.eval_every
-            )  # fmt: skip
+            # a new run is evaluated at its start; a resumed one was at its checkpoint
+            self.next_eval = model.num_timesteps + (args.eval_every if resuming else 0)
 
         def run_eval(self) -> None:
             res = evaluate(
