@@ -947,7 +947,7 @@ def train(
 ) -> None:
     """Train a PPO policy (stable-baselines3) on a drawer/door task: resumable (--resume),
     the held-out curve as eval.csv and curve.png, videos of held-out episodes at the end."""
-    from tasks.train import Args, recipe_episode_steps
+    from tasks.train import Args, TrainingStopped, recipe_episode_steps
     from tasks.train import train as run_training
 
     args = Args(
@@ -970,7 +970,10 @@ def train(
         out_dir=out,
         seed=seed,
     )
-    summary = run_training(args)
+    try:
+        summary = run_training(args)
+    except TrainingStopped as stop:  # the exit status of a process a signal ended
+        raise fail(stop, code=128 + stop.signum) from None
     console.print(summary)
 
 

@@ -24,7 +24,11 @@ import gc
 import json
 import logging
 import shutil
+import signal
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -530,6 +534,35 @@ def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
 # --------------------------------------------------------------------------- training
 
 
+class TrainingStopped(Exception):
+    """A signal stopped the run (SIGTERM: ``kill``, a job scheduler; SIGINT: Ctrl-C); it
+    saved its checkpoint first. ``signum``: the signal's number."""
+
+    def __init__(self, message: str, signum: int = signal.SIGTERM) -> None:
+        super().__init__(message)
+        self.signum = int(signum)
+
+
+@contextmanager
+def stop_on_sigterm() -> Iterator[None]:
+    """Within: SIGTERM raises :class:`TrainingStopped` in the main thread, so a run saves
+    its checkpoint and closes its env workers instead of ending at once (SIGINT already
+    raises KeyboardInterrupt, unless the shell that started the run ignores it, as a
+    non-interactive shell does for a background job). Outside the main thread, nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise TrainingStopped(signal.Signals(signum).name, signum)
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def learning_rate_schedule(args: Args) -> Any:
     """``args.learning_rate``, or with ``lr_anneal_steps`` SB3's schedule form (a function
     of the remaining progress, 1 at the start and 0 at ``total_timesteps``) of a linear
@@ -759,19 +792,27 @@ def train(args: Args) -> dict[str, Any]:
 
     remaining = args.total_timesteps - model.num_timesteps
     try:
-        if remaining > 0 and (args.max_minutes is None or time.time() - t0 < 60 * args.max_minutes):
-            model.learn(
-                total_timesteps=remaining,
-                callback=PeriodicEval(),
-                reset_num_timesteps=not resuming,
-                progress_bar=args.progress_bar,
-            )
-        save_policy()
-    except KeyboardInterrupt:
+        with stop_on_sigterm():
+            if remaining > 0 and (
+                args.max_minutes is None or time.time() - t0 < 60 * args.max_minutes
+            ):
+                model.learn(
+                    total_timesteps=remaining,
+                    callback=PeriodicEval(),
+                    reset_num_timesteps=not resuming,
+                    progress_bar=args.progress_bar,
+                )
+            save_policy()
+    except (KeyboardInterrupt, TrainingStopped) as stop:
         save_policy()  # resume with --resume
-        raise
+        signum = stop.signum if isinstance(stop, TrainingStopped) else signal.SIGINT
+        raise TrainingStopped(
+            f"{out}: stopped by {signal.Signals(signum).name} at {model.num_timesteps} steps; "
+            "the checkpoint is saved: the same command with --resume goes on",
+            signum,
+        ) from None
     finally:
-        venv.close()
+        close_quietly(venv)
     videos = []
     if args.video_episodes > 0:
         shutil.rmtree(out / "videos", ignore_errors=True)
@@ -791,6 +832,15 @@ def train(args: Args) -> dict[str, Any]:
         "timesteps": int(model.num_timesteps),
         "seconds": time.time() - t0,
     }
+
+
+def close_quietly(venv: Any) -> None:
+    """Close the training envs; workers already ended (a SIGTERM sent to the whole process
+    group reaches them too) leave broken pipes, which are only logged."""
+    try:
+        venv.close()
+    except (BrokenPipeError, EOFError, ConnectionError, OSError) as e:
+        log.warning("closing the env workers: %s", e)
 
 
 def _optional(kind: type) -> Any:

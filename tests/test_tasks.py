@@ -304,6 +304,55 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
     assert len(result["episodes"]) == 2 and set(result["by_category"]) == {"desk"}
 
 
+@pytest.mark.slow
+def test_sigterm_saves_the_checkpoint_and_closes_the_workers(
+    procedural_assets: Path, tmp_path: Path
+) -> None:
+    """`pact train` sent SIGTERM mid-run (as `kill` or a job scheduler does): it saves the
+    checkpoint, ends its env worker processes and exits 128 + 15, saying how to go on."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    run = tmp_path / "run"
+    cmd = [
+        sys.executable, "-c", "from pact_cli.main import main; main()", "train",
+        "--assets", str(procedural_assets), "--steps", "1000000", "--num-envs", "2",
+        "--eval-every", "0", "--video-episodes", "0", "--no-progress", "--out", str(run),
+    ]  # fmt: skip
+    child = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.time() + 240
+        progress = run / "progress.csv"  # SB3 writes a row after each rollout
+        while time.time() < deadline and child.poll() is None:
+            if progress.is_file() and len(progress.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.5)
+        assert child.poll() is None, child.communicate()[0]
+        children = subprocess.run(
+            ["pgrep", "-P", str(child.pid)], capture_output=True, text=True
+        ).stdout.split()
+        workers = [  # the async vector env's processes (not multiprocessing's tracker)
+            pid for pid in children if b"spawn_main" in Path(f"/proc/{pid}/cmdline").read_bytes()
+        ]
+        assert len(workers) == 2
+        child.send_signal(signal.SIGTERM)
+        output, _ = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == 128 + signal.SIGTERM, output
+    assert "stopped by SIGTERM" in output and "--resume" in output
+    state = json.loads((run / "checkpoint" / "state.json").read_text())
+    assert state["num_timesteps"] >= 256  # at least the first rollout: 2 envs x 128 steps
+    assert (run / "policy.zip").is_file()
+    deadline = time.time() + 10  # no worker outlives the run
+    while time.time() < deadline and any(Path(f"/proc/{pid}").exists() for pid in workers):
+        time.sleep(0.2)
+    assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
+
+
 def test_obs_norm_matches_vec_normalize():
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
