@@ -562,3 +562,30 @@ def test_shipped_policy_runs_on_built_assets(task: str, procedural_assets: Path)
         ("drawer",) if task == "OpenDrawer-v0" else ("side_door", "bottom_door")
     )
     assert np.isfinite(res["mean_return"])
+
+
+def test_task_assets_bench_counts_parts_per_kind(procedural_assets: Path) -> None:
+    """bench/task_assets.py: per part kind, the parts the tasks see, ranges in degrees for
+    hinges and metres for drawers, checked against the assets' own joints."""
+    import importlib.util
+
+    from sim_envs.asset_sources import open_source
+
+    spec = importlib.util.spec_from_file_location(
+        "task_assets", Path(__file__).parents[1] / "bench" / "task_assets.py"
+    )
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    summary = bench.summarize(bench.part_rows(str(procedural_assets)))
+    parts = [p for a in open_source(procedural_assets).assets() for p in a.movable_parts()]
+    want = {}
+    for p in parts:
+        want.setdefault(p.kind, []).append(p)
+    assert set(summary) == set(want) >= {"drawer", "side_door", "bottom_door"}
+    for kind, group in want.items():
+        assert summary[kind]["parts"] == len(group)
+        assert sum(summary[kind]["handles"].values()) == len(group)
+        ranges = [p.range if kind == "drawer" else np.degrees(p.range) for p in group]
+        assert summary[kind]["range"]["max"] == pytest.approx(max(ranges), abs=0.06)
+    assert summary["drawer"]["categories"] == {"desk": len(want["drawer"])}
+    assert 60 <= summary["side_door"]["range"]["median"] <= 180  # degrees, not radians
