@@ -46,6 +46,7 @@ inside the base's walls. Stage 2 then decodes these grids like any others.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -176,6 +177,15 @@ def _square_crop(image: np.ndarray, side: int) -> np.ndarray:
     return sq[r][:, r]
 
 
+@functools.lru_cache(maxsize=8)
+def _pixel_grid(G: int) -> tuple[np.ndarray, np.ndarray]:
+    """(G, G) column and row coordinates of the pixel centres of a unit square, G a side."""
+    g = (np.arange(G) + 0.5) / G
+    U, V = np.meshgrid(g, g)
+    U.flags.writeable = V.flags.writeable = False
+    return U, V
+
+
 def _scores(
     silhouette: np.ndarray,
     parts: np.ndarray,
@@ -186,9 +196,7 @@ def _scores(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(score, silhouette IoU), each (B,), of B boxes ``half`` (B, 3) in one view against
     the square-cropped silhouette and movable-part pixels (G, G) bool."""
-    G = silhouette.shape[0]
-    g = (np.arange(G) + 0.5) / G
-    U, V = np.meshgrid(g, g)
+    U, V = _pixel_grid(silhouette.shape[0])
     p = _project(_CORNERS[None] * half[:, None, :], azimuth, elevation, half, fovy)  # (B, 8, 2)
     lo, hi = p.min(axis=1), p.max(axis=1)
     side = (hi - lo).max(axis=1)
@@ -361,10 +369,15 @@ def fit_box_camera(
 
     S, P = rasters[FIT_RASTERS[1]]
 
+    seen: dict[tuple[float, ...], tuple[float, float]] = {}  # the search revisits points
+
     def evaluate(x: np.ndarray, edged: bool) -> tuple[float, float]:
-        h = np.array([[np.exp(x[2]) / 2, 0.5, np.exp(x[3]) / 2]])
-        score, iou = _scores(S, P, x[0], x[1], h, fovy)
-        return float(score[0]) + (edge_term(x) if edged else 0.0), float(iou[0])
+        key = (*x.tolist(), float(edged))
+        if key not in seen:
+            h = np.array([[np.exp(x[2]) / 2, 0.5, np.exp(x[3]) / 2]])
+            score, iou = _scores(S, P, x[0], x[1], h, fovy)
+            seen[key] = (float(score[0]) + (edge_term(x) if edged else 0.0), float(iou[0]))
+        return seen[key]
 
     def refine(edged: bool) -> np.ndarray:
         best_x, best_score = coarse[0][1], -np.inf
