@@ -937,6 +937,11 @@ def train(
     eval_episodes: int = typer.Option(10, help="Episodes per periodic evaluation."),
     video_episodes: int = typer.Option(2, help="Held-out episodes recorded at the end."),
     resume: bool = typer.Option(False, "--resume", help="Go on from OUT/checkpoint."),
+    randomize_physics: bool = typer.Option(
+        False,
+        "--randomize-physics",
+        help="Scale each training object's part masses, damping and friction at every load.",
+    ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
@@ -965,6 +970,7 @@ def train(
         eval_episodes=eval_episodes,
         video_episodes=video_episodes,
         resume=resume,
+        randomize_physics=randomize_physics,
         progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,

@@ -67,6 +67,26 @@ def add_to_scene(
     return art
 
 
+def scale_part_physics(
+    articulation: Articulation, mass: float = 1.0, damping: float = 1.0, friction: float = 1.0
+) -> None:
+    """Scale, in every sub-scene copy of a loaded object, each movable part's mass and
+    inertia by ``mass`` and its joint's damping and friction by ``damping`` and
+    ``friction`` (the tasks' physics randomization). Run it while the scene is being
+    built (``_load_scene``), after :func:`add_to_scene`."""
+    if min(mass, damping, friction) <= 0:
+        raise ValueError(f"scales must be positive, got {mass}, {damping}, {friction}")
+    for obj in articulation._objs:
+        for joint in obj.get_active_joints():
+            joint.set_drive_properties(
+                joint.stiffness, joint.damping * damping, joint.force_limit, joint.drive_mode
+            )
+            joint.set_friction(joint.friction * friction)
+            link = joint.child_link
+            link.set_mass(link.mass * mass)
+            link.set_inertia(np.asarray(link.inertia) * mass)
+
+
 #: Clearance (m) left between the floor and the lowest point any part sweeps through.
 FLOOR_CLEARANCE = 0.003
 

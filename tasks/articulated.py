@@ -29,6 +29,7 @@ in front of and beside a bottom-hinged one). Plus a little noise.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -53,6 +54,7 @@ from sim_envs.scene import (
     handle_world_positions,
     robot_ignores_ground,
     rotate_z,
+    scale_part_physics,
     yaw_quat,
 )
 from tasks.placement import PandaReach, face_normal_link, robot_base_for_part
@@ -66,6 +68,31 @@ READY_QPOS = np.array([0.0, -0.2, 0.0, -1.8, 0.0, 3.171, -0.785, 0.04, 0.04], dt
 VERTICAL_BAR_WRIST = 0.785
 # robot placements per (asset folder, part, standoff): inverse kinematics is run once
 _PLACEMENTS: dict[tuple[str, str, float], tuple[np.ndarray, float]] = {}
+
+
+@dataclass(frozen=True)
+class PhysicsRandomization:
+    """Scale factors, each drawn log-uniformly in its (low, high) once per object load,
+    for the object's movable parts: mass (and inertia), joint damping, joint friction
+    (``sim_envs.scene.scale_part_physics``). For training: what a generator makes is
+    lighter and looser than many real parts (a refrigerator door of 16 kg against the
+    2.4 kg of a generated side door, ``bench/task_assets.py``)."""
+
+    mass: tuple[float, float] = (0.5, 4.0)
+    damping: tuple[float, float] = (0.5, 2.0)
+    friction: tuple[float, float] = (0.5, 2.0)
+
+    def draw(self, rng: np.random.RandomState) -> tuple[float, float, float]:
+        """(mass, damping, friction) scales."""
+        ranges = (self.mass, self.damping, self.friction)
+        for lo, hi in ranges:
+            if not 0 < lo <= hi:
+                raise ValueError(f"a scale range must be 0 < low <= high, got ({lo}, {hi})")
+        u = rng.uniform(size=3)
+        return tuple(  # type: ignore[return-value]
+            float(np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo))))
+            for x, (lo, hi) in zip(u, ranges, strict=True)
+        )
 
 
 class ArticulatedPartEnv(BaseEnv):
@@ -102,6 +129,7 @@ class ArticulatedPartEnv(BaseEnv):
         robot_pos_noise: float = 0.02,
         near_start_prob: float = 0.0,
         require_grasp: bool = False,
+        physics_randomization: PhysicsRandomization | None = None,
         sim_options: SimOptions = DEFAULT_SIM_OPTIONS,
         reconfiguration_freq: int | None = None,
         num_envs: int = 1,
@@ -118,6 +146,7 @@ class ArticulatedPartEnv(BaseEnv):
             raise ValueError("near_start_prob applies to the drawer opening task only")
         self.near_start_prob = float(near_start_prob)
         self.require_grasp = bool(require_grasp)
+        self.physics_randomization = physics_randomization
         self.sim_options = sim_options
         if reconfiguration_freq is None:
             reconfiguration_freq = 1 if num_envs == 1 else 0
@@ -180,6 +209,8 @@ class ArticulatedPartEnv(BaseEnv):
         self.episode_assets: list[BuiltAsset] = []
         self.candidate_parts: list[list[MovablePart]] = []  # per env: the parts to pick from
         cand_links: list[list[Link]] = []
+        # per env the (mass, damping, friction) scales of its object's movable parts
+        self.physics_scales = torch.ones((self.num_envs, 3), device=self.device)
         for i in range(self.num_envs):
             rec = self.assets[int(asset_idx[i])]
             parts = rec.parts_of_type(self.joint_type)
@@ -192,6 +223,10 @@ class ArticulatedPartEnv(BaseEnv):
             art = add_to_scene(
                 self.scene, rec, scene_idxs=[i], name=f"object-{i}", options=self.sim_options
             )
+            if self.physics_randomization is not None:
+                scales = self.physics_randomization.draw(self._batched_episode_rng[i])
+                scale_part_physics(art, *scales)
+                self.physics_scales[i] = torch.tensor(scales)
             self.remove_from_state_dict_registry(art)
             objects.append(art)
             cand_links.append([art.links_map[p.name] for p in parts])

@@ -101,6 +101,9 @@ class Args:
     """OpenDrawer-v0: share of training episodes starting with fingers round the handle"""
     require_grasp: bool = True
     """dense reward's grasp term only for a real grasp, not a hook (False: the env's)"""
+    randomize_physics: bool = False
+    """training envs scale each object's movable parts' mass, damping and friction at every
+    load (tasks.articulated.PhysicsRandomization's ranges); evaluation never does"""
     normalize_obs: bool = True
     """running mean/std observation normalization, saved beside the policy (obs_norm.npz)"""
     net_arch: list[int] = field(default_factory=lambda: [256, 256])
@@ -248,9 +251,17 @@ def _env_fn(args: Args, rank: int):
             sim_config={"control_freq": args.control_freq},
             near_start_prob=args.near_start_prob,
             require_grasp=args.require_grasp,
+            physics_randomization=physics_randomization(args),
         )
 
     return thunk
+
+
+def physics_randomization(args: Args) -> Any:
+    """The training envs' PhysicsRandomization (None: the assets' own physics)."""
+    from tasks.articulated import PhysicsRandomization
+
+    return PhysicsRandomization() if args.randomize_physics else None
 
 
 def set_torch_threads(n: int) -> None:
@@ -355,6 +366,7 @@ def make_train_env(args: Args):
         reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
         near_start_prob=args.near_start_prob,
         require_grasp=args.require_grasp,
+        physics_randomization=physics_randomization(args),
     )
     return ManiSkillSB3VectorEnv(env)
 

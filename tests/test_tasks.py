@@ -589,3 +589,43 @@ def test_task_assets_bench_counts_parts_per_kind(procedural_assets: Path) -> Non
         assert summary[kind]["range"]["max"] == pytest.approx(max(ranges), abs=0.06)
     assert summary["drawer"]["categories"] == {"desk": len(want["drawer"])}
     assert 60 <= summary["side_door"]["range"]["median"] <= 180  # degrees, not radians
+
+
+def test_physics_randomization_scales_the_parts_within_its_ranges(procedural_assets: Path) -> None:
+    """Each load scales the object's movable parts by factors drawn in the ranges: masses
+    and inertias, joint damping and friction against the same object loaded plainly; the
+    same seed draws the same factors; the base is left alone."""
+    from tasks.articulated import PhysicsRandomization
+
+    def loaded(**kw):  # noqa: ANN003, ANN202
+        env = _make("OpenDrawer-v0", procedural_assets, **kw)
+        env.reset(seed=3)
+        u = env.unwrapped
+        obj = u.object._objs[0]
+        joints = {
+            j.name: (j.damping, j.friction, j.child_link.mass) for j in obj.get_active_joints()
+        }
+        base = obj.get_links()[0].mass
+        inertia = {j.name: np.asarray(j.child_link.inertia) for j in obj.get_active_joints()}
+        scales = u.physics_scales[0].cpu().numpy()
+        env.close()
+        return joints, base, inertia, scales
+
+    plain, base0, inertia0, scales0 = loaded()
+    np.testing.assert_array_equal(scales0, [1.0, 1.0, 1.0])
+    ranges = PhysicsRandomization(mass=(2.0, 3.0), damping=(0.5, 0.6), friction=(1.5, 1.6))
+    joints, base, inertia, scales = loaded(physics_randomization=ranges)
+    m, d, f = scales
+    assert 2.0 <= m <= 3.0 and 0.5 <= d <= 0.6 and 1.5 <= f <= 1.6
+    assert base == pytest.approx(base0)
+    assert set(joints) == set(plain) and plain
+    for name, (damping, friction, mass) in joints.items():
+        assert damping == pytest.approx(plain[name][0] * d, rel=1e-5)
+        assert friction == pytest.approx(plain[name][1] * f, rel=1e-5)
+        assert mass == pytest.approx(plain[name][2] * m, rel=1e-5)
+        np.testing.assert_allclose(inertia[name], inertia0[name] * m, rtol=1e-5)
+    assert plain[next(iter(plain))][0] > 0  # the asset's damping is there to be scaled
+    _, _, _, again = loaded(physics_randomization=ranges)
+    np.testing.assert_array_equal(again, scales)
+    with pytest.raises(ValueError, match="0 < low <= high"):
+        PhysicsRandomization(mass=(0.0, 1.0)).draw(np.random.RandomState(0))
