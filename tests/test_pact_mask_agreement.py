@@ -8,12 +8,14 @@ import pytest
 
 from generator.pact.inference.mask_agreement import (
     agreement,
+    agreements,
     carve_missing,
     id_iou,
     mask_ids,
     relabel_front,
     render_ids,
     sample_mask,
+    sample_masks,
     surface_points,
     view_rotation,
 )
@@ -91,6 +93,17 @@ def test_agreement_prefers_the_layout_the_mask_shows():
     missing[2] = False
     assert agreement(missing, mask) < 0.6  # id 3 unmatched: at most half the mean
     assert agreement(np.zeros((3, R, R, R), bool), mask) == 0.0
+
+
+def test_several_samples_scored_at_once_as_one_by_one():
+    """agreements and sample_masks (threads) give what agreement and sample_mask give."""
+    samples = [_two_doors(), _two_doors(swap=True), _two_doors()[:2]]
+    mask = _front_mask()
+    assert agreements(samples, mask) == [agreement(o, mask) for o in samples]
+    assert agreements(samples, mask)[0] > agreements(samples, mask)[1]
+    sil = mask > 0
+    for got, o in zip(sample_masks(samples, [sil] * 3), samples, strict=True):
+        np.testing.assert_array_equal(got, sample_mask(o, sil))
 
 
 def test_best_candidate_realizes_the_mask_parts_then_agrees_best():

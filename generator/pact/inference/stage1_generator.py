@@ -64,11 +64,12 @@ from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout
 from generator.mesh_repair.cleaning import clean_parts
 from generator.pact.inference.mask_agreement import (
-    agreement,
+    agreements,
     carve_missing,
     fit_height,
     relabel_front,
     sample_mask,
+    sample_masks,
 )
 from generator.pact.inference.mask_layout import depth_ratio, layout_from_mask
 from generator.pact.model.checkpoint import load_checkpoint
@@ -323,7 +324,7 @@ class Stage1Generator:
         own_masks = None  # without a mask: the kept samples' own part masks (sample_mask)
         if n > 1 and masks is None:
             sils = sil.cpu().numpy()
-            own = [sample_mask(o, sils[i // n]) for i, o in enumerate(occ)]
+            own = sample_masks(occ, [sils[i // n] for i in range(len(occ))])
             keep = np.array(
                 [
                     self._consensus_candidate(
@@ -409,7 +410,7 @@ class Stage1Generator:
         best = np.flatnonzero(counts == median)
         if len(best) == 1:
             return int(best[0])
-        scores = [agreement(occ[c].any(axis=0)[None], sil.astype(np.int64)) for c in best]
+        scores = agreements([occ[c].any(axis=0)[None] for c in best], sil.astype(np.int64))
         return int(best[int(np.argmax(scores))])
 
     @staticmethod
@@ -423,7 +424,7 @@ class Stage1Generator:
         best = np.flatnonzero(realized == realized.max())
         if len(best) == 1:
             return int(best[0])
-        scores = [agreement(occ[c], mask) for c in best]
+        scores = agreements([occ[c] for c in best], mask)
         return int(best[int(np.argmax(scores))])
 
     # --- Generator interface ------------------------------------------------------------
