@@ -937,6 +937,11 @@ def train(
     eval_episodes: int = typer.Option(10, help="Episodes per periodic evaluation."),
     video_episodes: int = typer.Option(2, help="Held-out episodes recorded at the end."),
     resume: bool = typer.Option(False, "--resume", help="Go on from OUT/checkpoint."),
+    lr_anneal_steps: int = typer.Option(
+        600_000,
+        help="Steps at which the learning rate has decayed to 0 (0: constant); "
+        "match it to what --minutes reaches.",
+    ),
     randomize_physics: bool = typer.Option(
         False,
         "--randomize-physics",
@@ -970,6 +975,7 @@ def train(
         eval_episodes=eval_episodes,
         video_episodes=video_episodes,
         resume=resume,
+        lr_anneal_steps=lr_anneal_steps or None,
         randomize_physics=randomize_physics,
         progress_bar=progress,
         sim_backend=sim_backend,

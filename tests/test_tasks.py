@@ -629,3 +629,34 @@ def test_physics_randomization_scales_the_parts_within_its_ranges(procedural_ass
     np.testing.assert_array_equal(again, scales)
     with pytest.raises(ValueError, match="0 < low <= high"):
         PhysicsRandomization(mass=(0.0, 1.0)).draw(np.random.RandomState(0))
+
+
+def test_pact_train_passes_its_options_and_reports_a_stop(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """`pact train`'s options reach the training arguments (0 learning-rate horizon: a
+    constant rate), and a stopped run exits 128 + the signal with its message."""
+    import signal
+
+    from typer.testing import CliRunner
+
+    import tasks.train
+    from pact_cli.main import app
+
+    seen = []
+
+    def fake_train(args):  # noqa: ANN001, ANN202
+        seen.append(args)
+        if args.seed == 1:
+            raise tasks.train.TrainingStopped("RUN: stopped by SIGTERM at 10 steps", signal.SIGTERM)
+        return {"timesteps": 0}
+
+    monkeypatch.setattr(tasks.train, "train", fake_train)
+    base = ["train", "--assets", str(tmp_path), "--out", str(tmp_path / "run")]
+    res = CliRunner().invoke(app, [*base, "--lr-anneal-steps", "950000", "--randomize-physics"])
+    assert res.exit_code == 0, res.output
+    assert seen[-1].lr_anneal_steps == 950_000 and seen[-1].randomize_physics
+    res = CliRunner().invoke(app, [*base, "--lr-anneal-steps", "0", "--seed", "1"])
+    assert seen[-1].lr_anneal_steps is None and not seen[-1].randomize_physics
+    assert res.exit_code == 128 + signal.SIGTERM
+    assert "stopped by SIGTERM" in res.output
