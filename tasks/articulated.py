@@ -82,12 +82,14 @@ class PhysicsRandomization:
     damping: tuple[float, float] = (0.5, 2.0)
     friction: tuple[float, float] = (0.5, 2.0)
 
+    def __post_init__(self) -> None:
+        for lo, hi in (self.mass, self.damping, self.friction):
+            if not 0 < lo <= hi:
+                raise ValueError(f"a scale range must be 0 < low <= high, got ({lo}, {hi})")
+
     def draw(self, rng: np.random.RandomState) -> tuple[float, float, float]:
         """(mass, damping, friction) scales."""
         ranges = (self.mass, self.damping, self.friction)
-        for lo, hi in ranges:
-            if not 0 < lo <= hi:
-                raise ValueError(f"a scale range must be 0 < low <= high, got ({lo}, {hi})")
         u = rng.uniform(size=3)
         return tuple(  # type: ignore[return-value]
             float(np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo))))
