@@ -1163,32 +1163,44 @@ def dataset_build(
 @reports_errors
 def dataset_parser(
     out: Path = typer.Option(..., "--out", "-o", help="Data folder (manifest.json + images/)."),
-    objects: int = typer.Option(..., "--objects", min=1, help="Objects 0..N-1 of the plan."),
+    objects: int = typer.Option(0, "--objects", min=0, help="Objects 0..N-1 of the plan."),
+    bundles: list[Path] = typer.Option(
+        [],
+        "--bundle",
+        help="Render this object bundle (e.g. an imported PartNet-Mobility object) instead "
+        "of procedural objects; repeat for more.",
+    ),
     views: int = typer.Option(4, "--views", min=1, help="Photos per object."),
     seed: int = typer.Option(0, "--seed", help="Dataset seed (objects, views, split)."),
     image_size: int = typer.Option(256, "--image-size", min=16, help="Photo size in pixels."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
-    """Render the photo parser's training data: realistic procedural objects as photos
-    with part masks and motion labels (docs/dataset.md, "Parser training data")."""
+    """Render the photo parser's training data: realistic procedural objects (or the
+    given bundles) as photos with part masks and motion labels (docs/dataset.md, "Parser
+    training data")."""
     from contextlib import nullcontext
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
-    from generator.data.parser_data import ParserDataError, write_parser_data
+    from generator.data.parser_data import (
+        ParserDataError,
+        write_parser_data,
+        write_parser_data_from_bundles,
+    )
 
+    if bool(objects) == bool(bundles):
+        raise fail("give either --objects N (procedural objects) or --bundle DIR (repeatable)")
     bar = Progress(BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=console)
-    task = bar.add_task("objects", total=objects)
+    task = bar.add_task("objects", total=objects or len(bundles))
+    shown = None if quiet else (lambda done, _n: bar.update(task, completed=done))
     try:
         with bar if not quiet else nullcontext():
-            manifest = write_parser_data(
-                out,
-                objects,
-                views,
-                seed,
-                image_size,
-                progress=None if quiet else lambda done, _n: bar.update(task, completed=done),
-            )
+            if bundles:
+                manifest = write_parser_data_from_bundles(
+                    out, bundles, views, seed, image_size, progress=shown
+                )
+            else:
+                manifest = write_parser_data(out, objects, views, seed, image_size, progress=shown)
     except ParserDataError as e:
         raise fail(e) from e
     print(f"{out}: {len(manifest['items'])} images, {len(manifest['failed'])} failed objects")

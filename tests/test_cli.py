@@ -195,3 +195,12 @@ def test_convert_uses_pact_by_default(tmp_path):
     # --keep-intermediate: the generator's bundle stays beside the asset
     assert (folder / "object.json").is_file() and (folder / "parts" / "base.glb").is_file()
 
+
+def test_dataset_parser_needs_objects_or_bundles_and_names_a_bad_bundle(tmp_path):
+    r = runner.invoke(app, ["dataset", "parser", "--out", str(tmp_path / "d")])
+    assert r.exit_code != 0 and "--objects N" in r.output and "--bundle DIR" in r.output
+    r = runner.invoke(
+        app,
+        ["dataset", "parser", "--out", str(tmp_path / "d"), "--bundle", str(tmp_path), "-q"],
+    )
+    assert r.exit_code != 0 and "not an object bundle" in r.output and str(tmp_path) in r.output

@@ -26,6 +26,7 @@ from generator.parser.data import (
     ParserDataset,
     StepBatches,
     box_targets,
+    mixed_items,
     motion_lut,
     targets,
 )
@@ -176,6 +177,20 @@ def test_flip_swaps_left_and_right_doors(tmp_path: Path, flip: float) -> None:
         assert found == {MOTIONS.index("door_left")}
         assert door_cols.mean() < 16
     assert s["image"].shape == (3, 64, 64) and int(s["category"]) == CATEGORIES.index("cabinet")
+
+
+def test_a_second_folder_joins_the_training_items_from_its_own_root(tmp_path: Path) -> None:
+    """--extra-data: the second folder's train items, repeated, read from that folder."""
+    _tiny_dataset(tmp_path / "procedural")
+    _tiny_dataset(tmp_path / "real")
+    real_img = tmp_path / "real" / "images" / "a.png"
+    Image.fromarray(np.zeros((64, 64, 3), np.uint8)).save(real_img)  # tell the two apart
+    items = mixed_items(tmp_path / "procedural", tmp_path / "real", repeat=3)
+    assert [it.get("root") for it in items] == [None] + [str(tmp_path / "real")] * 3
+    ds = ParserDataset(tmp_path / "procedural", "train", size=64, augment=False, items=items)
+    assert len(ds) == 4
+    assert float(ds[0]["image"].mean()) > 0.3  # the procedural photo
+    assert all(float(ds[i]["image"][:, 20:44, 20:44].max()) == 0.0 for i in (1, 2, 3))
 
 
 def test_step_batches_are_reproducible() -> None:

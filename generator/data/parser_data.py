@@ -538,6 +538,75 @@ def write_parser_data(
     image size (ParserDataError). An object that cannot be built or rendered is listed
     under ``failed`` with the reason (and tried again by the next run).
     ``progress(done, total)`` is called after every object."""
+    sources = []
+    for i in range(n_objects):
+        plan = plan_object(seed, i)
+        sources.append(
+            ObjectSource(
+                plan.id,
+                plan.category,
+                plan.split,
+                lambda plan=plan: sample_realistic_object(plan.category, plan.seed),
+            )
+        )
+    return write_object_views(out, sources, views, seed, image_size, progress, flush_seconds)
+
+
+def write_parser_data_from_bundles(
+    out: str | Path,
+    bundles: list[str | Path],
+    views: int = 16,
+    seed: int = 0,
+    image_size: int = 256,
+    progress: Callable[[int, int], None] | None = None,
+    flush_seconds: float = 5.0,
+) -> dict[str, Any]:
+    """Parser data of built or imported objects (pact.object bundles, e.g. what
+    ``pact import`` writes for PartNet-Mobility objects), rendered exactly as the
+    procedural objects are. Object ids are the bundle folders' names, every object is
+    "train" (measure on other objects), a category outside ``CATEGORIES`` is "other".
+    Same format, resumability and refusals as :func:`write_parser_data`."""
+    from generator.bundle import load_bundle
+
+    sources = []
+    for b in bundles:
+        b = Path(b)
+        if not (b / "object.json").is_file():
+            raise ParserDataError(f"{b}: not an object bundle (no object.json)")
+        cat = json.loads((b / "object.json").read_text()).get("category")
+        sources.append(
+            ObjectSource(
+                b.name,
+                cat if cat in CATEGORIES else "other",
+                "train",
+                lambda b=b: load_bundle(b),
+            )
+        )
+    return write_object_views(out, sources, views, seed, image_size, progress, flush_seconds)
+
+
+@dataclass(frozen=True)
+class ObjectSource:
+    """One object of a parser data folder: its id, category, split and how to build it."""
+
+    id: str
+    category: str
+    split: str
+    build: Callable[[], ArticulatedObject]
+
+
+def write_object_views(
+    out: str | Path,
+    sources: list[ObjectSource],
+    views: int,
+    seed: int,
+    image_size: int,
+    progress: Callable[[int, int], None] | None = None,
+    flush_seconds: float = 5.0,
+) -> dict[str, Any]:
+    """Render ``views`` photos of each object of ``sources`` into ``out`` (the writer
+    of the format; :func:`write_parser_data` and :func:`write_parser_data_from_bundles`
+    choose the objects)."""
     out = Path(out)
     old = read_manifest(out)
     if old is not None and (old.get("seed"), old.get("image_size")) != (seed, image_size):
@@ -566,9 +635,8 @@ def write_parser_data(
 
     last_flush = time.monotonic()
     flush()
-    for i in range(n_objects):
-        plan = plan_object(seed, i)
-        oid = plan.id
+    for i, src in enumerate(sources):
+        oid = src.id
         ids = [f"{oid}_{k}" for k in range(views)]
         kept = {it["id"]: it for it in old_items.get(oid, [])}
         if all(
@@ -580,11 +648,12 @@ def write_parser_data(
         else:
             t0 = time.perf_counter()
             try:
-                obj = sample_realistic_object(plan.category, plan.seed)
+                obj = src.build()
                 for k, pv, rgb, mask, hints in render_parser_views(
                     obj, oid, views, image_size, seed
                 ):
                     iid = ids[k]
+                    hints["category"] = src.category
                     atomic_write_bytes(images / f"{iid}.png", _png(rgb))
                     atomic_write_bytes(images / f"{iid}.mask.png", _png(mask))
                     atomic_write_bytes(images / f"{iid}.json", json.dumps(hints).encode())
@@ -592,9 +661,9 @@ def write_parser_data(
                         {
                             "id": iid,
                             "object": oid,
-                            "category": plan.category,
+                            "category": src.category,
                             "style": pv.view.style,
-                            "split": plan.split,
+                            "split": src.split,
                         }
                     )
             except Exception as e:  # noqa: BLE001 - one bad object never stops the data
@@ -606,6 +675,6 @@ def write_parser_data(
             flush()
             last_flush = time.monotonic()
         if progress is not None:
-            progress(i + 1, n_objects)
+            progress(i + 1, len(sources))
     flush()
     return manifest

@@ -286,8 +286,31 @@ def letterbox_matrix(h: int, w: int, size: int) -> np.ndarray:
     return np.array([[s, 0, (size - s * w) / 2], [0, s, (size - s * h) / 2]])
 
 
+def split_items(root: str | Path, split: str = "train") -> list[dict]:
+    """The items of one split of a parser-data folder whose files are on disk."""
+    root = Path(root)
+    return [
+        it
+        for it in read_manifest(root)["items"]
+        if it.get("split", "train") == split
+        and (root / "images" / f"{it['id']}.mask.png").is_file()
+    ]
+
+
+def mixed_items(
+    root: str | Path, extra: str | Path, repeat: int, split: str = "train"
+) -> list[dict]:
+    """The items of ``root`` and, ``repeat`` times over, those of a second folder (each
+    carrying its ``root``): a small set of other photos (renders of real objects)
+    weighed into the training of a large one."""
+    own = split_items(root, split)
+    other = [dict(it, root=str(extra)) for it in split_items(extra, split)]
+    return own + other * repeat
+
+
 class ParserDataset(Dataset):
-    """Items of one split of a parser-data folder; keys are (index, seed) pairs."""
+    """Items of one split of a parser-data folder (or the given items, each read from
+    its ``root`` if it names one); keys are (index, seed) pairs."""
 
     def __init__(
         self,
@@ -302,15 +325,7 @@ class ParserDataset(Dataset):
         self.size = size
         self.augment = augment
         self.cfg = cfg or AugmentConfig()
-        if items is None:
-            manifest = read_manifest(self.root)
-            items = [
-                it
-                for it in manifest["items"]
-                if it.get("split", "train") == split
-                and (self.root / "images" / f"{it['id']}.mask.png").is_file()
-            ]
-        self.items = list(items)
+        self.items = list(split_items(self.root, split) if items is None else items)
 
     def __len__(self) -> int:
         return len(self.items)
@@ -318,7 +333,7 @@ class ParserDataset(Dataset):
     def __getitem__(self, key: tuple[int, int] | int) -> dict[str, torch.Tensor]:
         index, seed = key if isinstance(key, tuple) else (key, 0)
         item = self.items[index]
-        image, mask, hints = load_item(self.root, item["id"])
+        image, mask, hints = load_item(item.get("root", self.root), item["id"])
         rng = np.random.default_rng([seed, index])
         if self.augment:
             img, m, flip = augment(image, mask, self.size, rng, self.cfg)

@@ -39,7 +39,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
-from generator.parser.data import ParserDataset, StepBatches, write_motion_prior
+from generator.parser.data import ParserDataset, StepBatches, mixed_items, write_motion_prior
 from generator.parser.model import ParserConfig, ParserNet, load_weights, save_weights
 
 log = logging.getLogger(__name__)
@@ -78,6 +78,8 @@ class Args:
     reload_every: int = 1000
     max_minutes: float = 0.0  # stop (after a checkpoint) after this long; 0: no limit
     init_from: str = ""  # a weights folder to start from (fresh optimiser and schedule)
+    extra_data: str = ""  # a second parser-data folder (renders of real objects) whose
+    extra_repeat: int = 1  # train items join the batches' draw this many times over
     resume: bool = True
 
 
@@ -284,7 +286,10 @@ def train(args: Args) -> Path:
     switch = int(args.small_fraction * args.steps)
     while step < args.steps:
         size = args.small_size if step < switch else args.size
-        ds = ParserDataset(args.data, "train", size, augment=True)
+        items = (
+            mixed_items(args.data, args.extra_data, args.extra_repeat) if args.extra_data else None
+        )
+        ds = ParserDataset(args.data, "train", size, augment=True, items=items)
         stop = min(args.steps, (step // args.reload_every + 1) * args.reload_every)
         if step < switch:
             stop = min(stop, switch)
