@@ -1,7 +1,7 @@
 """The photo parser on real renders: category, part count, part-mask IoU, joint kinds.
 
     .venv/bin/python bench/parser.py [--split-dir /work/data/real_split] [--weights DIR]
-        [--threads 1] [--limit N] [--given-mask] [--out result.json]
+        [--threads 1] [--limit N] [--given-mask] [--dev-half B] [--out result.json]
     .venv/bin/python bench/parser.py --split-dir /work/data/parser_data   # its val items
 
 It runs ``generator.parser.PhotoParser`` on every image of a real split
@@ -16,7 +16,8 @@ then ``generator.motions.motion_of``); a true part is one whose id is in the ima
 mask. ``--given-mask`` also measures ``PhotoParser.label`` on the true masks. Given
 parser data (``docs/dataset.md``) it measures the ``val`` items: procedural objects
 held out of training, where the parser's inference settings are chosen (never on the
-real renders).
+real renders). ``--dev-half A|B`` keeps the objects of one half of the dev objects
+(``policies/partnet_split.json``; half A may be trained on, half B never is).
 """
 
 from __future__ import annotations
@@ -192,6 +193,16 @@ def split_images(split_dir: Path) -> list[dict]:
     return out
 
 
+DEV_SPLIT = Path(__file__).resolve().parents[1] / "policies" / "partnet_split.json"
+
+
+def dev_half(half: str) -> list[str]:
+    """The object ids of half ``A`` or ``B`` of the PartNet-Mobility dev objects."""
+    d = json.loads(DEV_SPLIT.read_text())
+    (key,) = [k for k in d if k.startswith(f"{half}_")]
+    return d[key]
+
+
 def run(args: argparse.Namespace) -> dict:
     import torch
 
@@ -200,6 +211,9 @@ def run(args: argparse.Namespace) -> dict:
     torch.set_num_threads(args.threads)
     parser = PhotoParser.from_dir(args.weights) if args.weights else PhotoParser.default()
     images = split_images(args.split_dir)
+    if args.dev_half:
+        keep = set(dev_half(args.dev_half))
+        images = [im for im in images if im["object"] in keep]
     images = images[: args.limit] if args.limit else images
     cache: dict = {}
     rows, label_rows, confusion = [], [], Counter()
@@ -232,6 +246,8 @@ def run(args: argparse.Namespace) -> dict:
     result = {
         "split_dir": str(args.split_dir),
         "weights": str(args.weights or "shipped"),
+        "dev_half": args.dev_half,
+        "photos": len(rows),
         "threads": args.threads,
         "parse": groups(rows),
         "seconds_per_photo": {
@@ -259,6 +275,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--given-mask", action="store_true", help="also PhotoParser.label on the true masks"
     )
+    ap.add_argument("--dev-half", choices=["A", "B"], default=None, help="only this half's objects")
     ap.add_argument("--per-image", action="store_true")
     ap.add_argument("--dump", type=Path, default=None, help="write photo | truth | parse PNGs here")
     ap.add_argument("--out", type=Path, default=None, help="also write the JSON here")

@@ -162,6 +162,29 @@ SEGMENTER_HELP = (
     "or sam2 (SAM2's automatic masks merged into parts by the parser, as in the PAct paper; "
     "needs the sam2 extra and --sam2-checkpoint, docs/segmenters.md)."
 )
+PARSER_WEIGHTS_HELP = (
+    "The photo parser's weights: 'shipped' (procedural renders only), 'partnet' (also "
+    "fine-tuned on PartNet-Mobility renders: non-commercial terms, docs/parser.md) or a "
+    "weights folder."
+)
+
+
+def check_parser_weights(weights: str) -> str | None:
+    """None for the default weights; otherwise the weights, loaded once to fail early."""
+    if weights == "shipped":
+        return None
+    from asset_pipeline.catalog.batch import load_parser
+    from generator.parser.inference import NAMED_WEIGHTS
+
+    if weights not in NAMED_WEIGHTS:
+        weights = str(Path(weights).resolve())
+    try:
+        load_parser(weights)
+    except (OSError, ValueError) as e:
+        raise fail(f"--parser-weights {weights}: {e}") from e
+    return weights
+
+
 SAM2_CHECKPOINT_HELP = "A SAM2 checkpoint file (with --segmenter sam2; docs/segmenters.md)."
 
 
@@ -606,6 +629,7 @@ def parse_photos(
     images: Path = typer.Argument(..., help="A folder of photos, or one photo."),
     segmenter: str = typer.Option(SEGMENTER_DEFAULT, help=SEGMENTER_HELP),
     sam2_checkpoint: Path = typer.Option(None, help=SAM2_CHECKPOINT_HELP),
+    parser_weights: str = typer.Option("shipped", help=PARSER_WEIGHTS_HELP),
     overwrite: bool = typer.Option(
         False, help="Replace the part masks that are there with the parser's."
     ),
@@ -627,12 +651,13 @@ def parse_photos(
     settings = ConvertSettings(
         segmenter=check_segmenter(segmenter, sam2_checkpoint),
         sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint),
+        parser_weights=check_parser_weights(parser_weights),
     )
     try:
         listing = discover_inputs(images)
     except InputError as e:
         raise fail(str(e)) from e
-    parser, seg = load_parser(), load_segmenter(settings)
+    parser, seg = load_parser(settings.parser_weights), load_segmenter(settings)
     table = Table(title="pact parse")
     for col in ("photo", "category", "parts (motion confidence)", "wrote"):
         table.add_column(col)
@@ -721,6 +746,7 @@ def convert(
     ),
     segmenter: str = typer.Option(SEGMENTER_DEFAULT, help=SEGMENTER_HELP),
     sam2_checkpoint: Path = typer.Option(None, help=SAM2_CHECKPOINT_HELP),
+    parser_weights: str = typer.Option("shipped", help=PARSER_WEIGHTS_HELP),
     formats: str = typer.Option(FORMATS_DEFAULT, help=FORMATS_HELP, show_default=True),
 ) -> None:
     """Convert an image folder into validated, catalogued sim assets (resumable)."""
@@ -751,6 +777,7 @@ def convert(
         parse=parse,
         segmenter=check_segmenter(segmenter, sam2_checkpoint),
         sam2_checkpoint=None if sam2_checkpoint is None else str(sam2_checkpoint.resolve()),
+        parser_weights=check_parser_weights(parser_weights) if parse else None,
         formats=check_formats_option(formats),
     )
     if parse and settings.segmenter == "sam2":  # a SAM2 that cannot load stops the run

@@ -240,3 +240,36 @@ def test_convert_with_a_bad_sam2_checkpoint_stops_with_one_error_line(tmp_path):
     assert not (tmp_path / "out" / "oven").exists()
     r = CliRunner().invoke(app, args)
     assert r.exit_code == 2 and "--sam2-checkpoint" in r.output
+
+
+def test_pact_parse_reads_with_the_weights_it_is_given(tmp_path):
+    """--parser-weights FOLDER: the parser of that folder writes the hints (its version,
+    named after the folder's weights, is in the 'parsed' record); a folder that holds no
+    weights stops pact parse and pact convert with one line naming it."""
+    import hashlib
+
+    import torch
+    from typer.testing import CliRunner
+
+    from generator.parser import ParserConfig, ParserNet
+    from generator.parser.model import save_weights
+    from pact_cli.main import app
+
+    torch.manual_seed(0)
+    tiny = ParserConfig(image_size=64, channels=(8, 8, 16, 16, 16), blocks=(0, 0, 1, 0, 0),
+                        decoder_channels=(8, 8, 16, 16))  # fmt: skip
+    weights = tmp_path / "w"
+    save_weights(ParserNet(tiny).eval(), weights, {"step": 7})
+    digest = hashlib.sha256((weights / "model.safetensors").read_bytes()).hexdigest()
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    _photo(photos, "bare")
+    r = CliRunner().invoke(app, ["parse", str(photos), "--parser-weights", str(weights)])
+    assert r.exit_code == 0, r.output
+    hints = json.loads((photos / "bare.json").read_text())
+    assert hints["parsed"]["by"] == f"parser-7-{digest[:8]}"
+    for cmd in (["parse", str(photos)], ["convert", str(photos), "--out", str(tmp_path / "o")]):
+        r = CliRunner().invoke(app, [*cmd, "--parser-weights", str(tmp_path / "photos")])
+        assert r.exit_code == 2 and "no config.json" in r.output and "Traceback" not in r.output
+        assert str(tmp_path / "photos") in r.output
+    assert not (tmp_path / "o").exists()

@@ -126,6 +126,8 @@ class ConvertSettings:
     #: parser; needs ``sam2_checkpoint``).
     segmenter: str = "parser"
     sam2_checkpoint: str | None = None
+    #: The photo parser's weights folder (``--parser-weights``); None: the shipped ones.
+    parser_weights: str | None = None
     #: Keep the generator's bundle (``object.json`` + ``parts/``) in the asset folder, so
     #: that ``pact build`` can rebuild it (``--keep-intermediate``); off, the folder holds
     #: the asset alone.
@@ -139,6 +141,8 @@ class ConvertSettings:
             del fields["collision"]
         if tuple(fields["formats"]) == ("urdf", "mjcf", "usd"):  # the default, as above
             del fields["formats"]
+        if fields["parser_weights"] is None:  # the default, as above
+            del fields["parser_weights"]
         text = json.dumps({**fields, "generator_version": generator_version}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -329,13 +333,17 @@ def convert_item(
 _PARSER_CACHE: dict[str, Any] = {}
 
 
-def load_parser() -> Any:
-    """The photo parser with the shipped weights (cached per process)."""
-    if "parser" not in _PARSER_CACHE:
-        from generator.parser import PhotoParser
+def load_parser(weights: str | None = None) -> Any:
+    """The photo parser with the shipped weights, or ``weights``: a name of shipped
+    weights ("partnet") or a weights folder (cached per process)."""
+    key = f"parser:{weights}" if weights else "parser"
+    if key not in _PARSER_CACHE:
+        from generator.parser import PhotoParser, weights_dir
 
-        _PARSER_CACHE["parser"] = PhotoParser.default()
-    return _PARSER_CACHE["parser"]
+        _PARSER_CACHE[key] = (
+            PhotoParser.from_dir(weights_dir(weights)) if weights else PhotoParser.default()
+        )
+    return _PARSER_CACHE[key]
 
 
 def load_segmenter(settings: ConvertSettings) -> Any:
@@ -359,7 +367,7 @@ def parse_stage(loaded: Any, settings: ConvertSettings) -> tuple[Any, Any]:
     (:func:`asset_pipeline.inputs.parsing.complete_input`). A parser that cannot run
     (its weights or SAM2 missing) leaves the item as the user gave it, with a warning."""
     try:
-        parser, segmenter = load_parser(), load_segmenter(settings)
+        parser, segmenter = load_parser(settings.parser_weights), load_segmenter(settings)
     except (ImportError, OSError, ValueError, RuntimeError) as e:
         log.debug("no photo parser:\n%s", traceback.format_exc())
         note = f"{loaded.item.image_path}: not parsed (no photo parser: {type(e).__name__}: {e})"

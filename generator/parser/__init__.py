@@ -16,6 +16,7 @@ from generator.parser.inference import (
     PixelMaps,
     RegionScores,
     instances,
+    weights_dir,
 )
 from generator.parser.model import CATEGORIES, SEG_CLASSES, ParserConfig, ParserNet
 
@@ -31,4 +32,5 @@ __all__ = [
     "PixelMaps",
     "RegionScores",
     "instances",
+    "weights_dir",
 ]

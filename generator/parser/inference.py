@@ -39,6 +39,19 @@ from generator.parser.model import CATEGORIES, ParserNet, load_weights
 log = logging.getLogger(__name__)
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights"
+#: Shipped weights by name: "shipped" (trained on the project's procedural renders only,
+#: the default) and "partnet" (fine-tuned on renders of PartNet-Mobility objects too;
+#: under that data's terms, docs/parser.md).
+NAMED_WEIGHTS = {
+    "shipped": DEFAULT_WEIGHTS,
+    "partnet": Path(__file__).resolve().parent / "weights_partnet",
+}
+
+
+def weights_dir(name_or_path: str | Path) -> Path:
+    """The folder of shipped weights named ``name_or_path`` (NAMED_WEIGHTS), else the
+    path itself."""
+    return NAMED_WEIGHTS.get(str(name_or_path), Path(name_or_path))
 
 
 @dataclass
