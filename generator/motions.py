@@ -76,9 +76,13 @@ def motion_of_joint(joint: Joint, lo: np.ndarray, hi: np.ndarray) -> str:
         if extent[2] <= min(extent[0], extent[1]) and o[0] < centre[0]:
             return "lid"  # a flat part hinged at its back edge
         return "flap_bottom" if o[2] < centre[2] else "flap_top"
-    # a hinge along the front's normal: the part turns in the front's plane; read it as a
-    # door hinged on the side its axis passes
-    return "door_left" if o[1] < centre[1] else "door_right"
+    # a hinge along the front's normal (front to back) is horizontal too: a lid hinged on
+    # its side edge (a top-loading washer's) or, rarely, a part turning in the front's
+    # plane; the vocabulary's horizontal hinges are the nearest
+    extent = hi - lo
+    if extent[2] <= min(extent[0], extent[1]):
+        return "lid"
+    return "flap_bottom" if o[2] < centre[2] else "flap_top"
 
 
 def motion_of(part: Part) -> str:

@@ -61,6 +61,18 @@ def test_a_left_hinged_door_of_partnet_convention_reads_as_left():
         assert motion_of(_part(lo, hi, j)) == "door_left"
 
 
+def test_a_hinge_from_front_to_back_is_a_horizontal_hinge():
+    """A top-loading washer's lid hinged on its left edge (axis along x, PartNet-Mobility
+    103508's) is a lid, not a side door; a front panel turning about the front's normal
+    reads as a flap (both horizontal hinges, as their axes are)."""
+    lo, hi = TOP
+    j = Joint("revolute", [0.0, -0.3, 0.9], [1, 0, 0], 0.0, 1.7)
+    assert motion_of(_part(lo, hi, j)) == "lid"
+    lo, hi = FRONT
+    j = Joint("revolute", [0.4, 0.0, 0.1], [1, 0, 0], 0.0, 1.0)
+    assert motion_of(_part(lo, hi, j)) == "flap_bottom"
+
+
 def test_unknown_motion_names_the_known_ones():
     with pytest.raises(UnknownMotionError, match="door_left"):
         joint_for_motion("slide_up", *FRONT)
