@@ -292,6 +292,21 @@ def test_shipped_weights_parse_an_example_photo() -> None:
     assert [p.motion for p in door] == ["flap_bottom"]
 
 
+def test_the_partnet_variant_is_named_weights_that_read_an_example_photo() -> None:
+    """--parser-weights partnet: the fine-tuned variant ships beside the default weights,
+    is other weights (another version), and reads the example desk as a desk of drawers."""
+    from generator.parser import weights_dir
+
+    assert weights_dir("partnet") == REPO / "generator" / "parser" / "weights_partnet"
+    assert weights_dir("shipped") == REPO / "generator" / "parser" / "weights"
+    assert weights_dir("/some/folder") == Path("/some/folder")
+    variant = PhotoParser.from_dir(weights_dir("partnet"))
+    assert variant.version != PhotoParser.default().version and variant.motion_prior
+    path = REPO / "examples" / "images" / "desk_t0000001.png"
+    parsed = variant.parse(np.asarray(Image.open(path).convert("RGB")))
+    assert parsed.category == "desk" and {p.motion for p in parsed.parts} == {"drawer"}
+
+
 def test_a_known_category_weighs_the_motions_by_what_its_parts_do() -> None:
     """p(m | photo, category) ~ p(m | photo) p(m | category) / p(m), hand-computed."""
     from generator.motions import MOTIONS
