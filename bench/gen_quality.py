@@ -5,7 +5,7 @@
     .venv/bin/python bench/gen_quality.py --split real --generator pact retrieval
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--views N] [--weights FOLDER]
-        [--parser [--parser-weights FOLDER]]
+        [--dev-half A|B] [--parser [--parser-weights FOLDER]]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -45,7 +45,7 @@ from rich.console import Console
 from rich.table import Table
 
 from generator.bundle import load_bundle, save_bundle
-from generator.data.real_split import DEFAULT_REAL_SPLIT, read_manifest
+from generator.data.real_split import DEFAULT_REAL_SPLIT, dev_half, read_manifest
 from generator.data.test_split import write_test_split
 from generator.metrics import (
     METRIC_KEYS,
@@ -151,6 +151,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
         + ("-onesample" if one_sample else "")
         + ("-hint" if args.category_hint else "")
         + ("-parser" if args.parser else "")
+        + (f"-{args.parser_weights.name}" if args.parser and args.parser_weights else "")
     )
     pred_dir = split_dir / tag
     seconds = []
@@ -162,6 +163,7 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
             if (not args.categories or im["category"] in args.categories)
             and (not args.styles or im["style"] in args.styles)
             and (args.views is None or int(im["id"].rsplit("_", 1)[1]) < args.views)
+            and (not args.dev_half or im["object"] in dev_half(args.dev_half))
         ][: args.limit]
         ids = [im["id"] for im in images]
     else:
@@ -271,6 +273,12 @@ def main() -> None:
     )
     ap.add_argument("--limit", type=int, default=None, help="Real split: only the first N images.")
     ap.add_argument("--categories", nargs="+", default=None, help="Real split: only these.")
+    ap.add_argument(
+        "--dev-half",
+        choices=("A", "B"),
+        default=None,
+        help="Real split: only the objects of this half (generator.data.real_split.dev_half)",
+    )
     ap.add_argument(
         "--views",
         type=int,

@@ -193,16 +193,6 @@ def split_images(split_dir: Path) -> list[dict]:
     return out
 
 
-DEV_SPLIT = Path(__file__).resolve().parents[1] / "policies" / "partnet_split.json"
-
-
-def dev_half(half: str) -> list[str]:
-    """The object ids of half ``A`` or ``B`` of the PartNet-Mobility dev objects."""
-    d = json.loads(DEV_SPLIT.read_text())
-    (key,) = [k for k in d if k.startswith(f"{half}_")]
-    return d[key]
-
-
 def run(args: argparse.Namespace) -> dict:
     import torch
 
@@ -212,6 +202,8 @@ def run(args: argparse.Namespace) -> dict:
     parser = PhotoParser.from_dir(args.weights) if args.weights else PhotoParser.default()
     images = split_images(args.split_dir)
     if args.dev_half:
+        from generator.data.real_split import dev_half
+
         keep = set(dev_half(args.dev_half))
         images = [im for im in images if im["object"] in keep]
     images = images[: args.limit] if args.limit else images

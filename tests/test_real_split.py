@@ -150,3 +150,12 @@ def test_write_split_layout_manifest_and_resume(obj, tmp_path):
     assert again["images"] == manifest["images"]
     with pytest.raises(ValueError, match="written with"):
         write_real_split(tmp_path, sources, views=2, image_size=SIZE, seed=0, supersample=2)
+
+
+def test_the_dev_halves_are_disjoint_and_named():
+    from generator.data.real_split import dev_half
+
+    a, b = dev_half("A"), dev_half("B")
+    assert len(a) == 21 and len(b) == 19 and not set(a) & set(b)
+    with pytest.raises(ValueError, match="no half 'C'"):
+        dev_half("C")

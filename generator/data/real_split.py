@@ -85,6 +85,20 @@ VERSION = 1
 STYLES: tuple[str, ...] = ("product", "room")
 #: Where ``bench/real_split.py`` writes the split and the benches look for it.
 DEFAULT_REAL_SPLIT = Path(os.environ.get("PACT_REAL_SPLIT", "/work/data/real_split"))
+#: The two halves of the PartNet-Mobility dev objects: half A may be trained on (the
+#: generated training assets' photos, the parser variant's renders), half B never is.
+DEV_HALVES = Path(__file__).resolve().parents[2] / "policies" / "partnet_split.json"
+
+
+def dev_half(half: str) -> list[str]:
+    """The object ids of half ``"A"`` or ``"B"`` of the dev objects (``DEV_HALVES``)."""
+    d = json.loads(DEV_HALVES.read_text())
+    keys = [k for k in d if k.startswith(f"{half}_")]
+    if len(keys) != 1:
+        raise ValueError(f"{DEV_HALVES}: no half {half!r} (halves: {', '.join(d)})")
+    return list(d[keys[0]])
+
+
 #: Closed height (metres) assumed for an object without a metric scale.
 TYPICAL_HEIGHT_M = {
     "cabinet": 0.9,
