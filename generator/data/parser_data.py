@@ -11,6 +11,10 @@
                                  parts visible in the view, consecutive
     out/images/<id>.json         {"category": ..., "parts": {"2": {"motion": ...}, ..}}
 
+``write_parser_data_from_bundles(out, bundles, views, seed)`` writes the same photos of
+objects that exist as bundles (imported PartNet-Mobility objects, for the parser's
+``partnet`` variant); both go through ``write_object_views``, the format's one writer.
+
 Objects: object ``i`` has the category of slot ``i % 100`` of block ``i // 100``, a
 deterministic shuffle of ``CATEGORY_SHARES`` (per hundred objects), and is
 ``sample_realistic_object(category, seed * 1_000_000 + i)``; about 5 % of the objects
