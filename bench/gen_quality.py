@@ -157,13 +157,14 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
     seconds = []
     if args.split == "real":
         manifest = read_manifest(split_dir) or {}
+        half = set(dev_half(args.dev_half)) if args.dev_half else None
         images = [
             im
             for im in manifest.get("images", [])
             if (not args.categories or im["category"] in args.categories)
             and (not args.styles or im["style"] in args.styles)
             and (args.views is None or int(im["id"].rsplit("_", 1)[1]) < args.views)
-            and (not args.dev_half or im["object"] in dev_half(args.dev_half))
+            and (half is None or im["object"] in half)
         ][: args.limit]
         ids = [im["id"] for im in images]
     else:
