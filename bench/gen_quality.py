@@ -6,6 +6,7 @@
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--views N] [--weights FOLDER]
         [--dev-half A|B] [--parser [--parser-weights FOLDER]]
+        [--candidates N] [--stage1-steps N] [--cfg-interval LO HI]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -32,6 +33,7 @@ eighth column, needs CLIP weights, which cannot be downloaded here; it is not re
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import statistics
 import sys
@@ -59,21 +61,62 @@ from generator.metrics import (
 GENERATORS = ("pact", "retrieval")
 
 
-def load_generator(name: str, weights: Path | None = None, one_sample: bool = False):  # noqa: ANN201
+def load_generator(  # noqa: ANN201
+    name: str, weights: Path | None = None, one_sample: bool = False, sampling: dict | None = None
+):
     """The generator ``name``; PAct from ``weights`` (a folder laid out as
     generator/pact/weights/small) when given, else the shipped small model; with
     ``one_sample``, PAct without a mask keeps one stage-1 sample as drawn
-    (``Stage1Generator(layout_without_mask=False)``)."""
+    (``Stage1Generator(layout_without_mask=False)``). ``sampling`` (:func:`sampling_options`)
+    changes PAct's sampling: stage-1 candidates and steps, both stages' guidance interval."""
     if name == "retrieval":
         from generator.retrieval import RetrievalGenerator
 
         return RetrievalGenerator.default()
     from generator.pact.inference.generate import WEIGHTS_DIR, PActGenerator
 
-    return PActGenerator.load(
-        WEIGHTS_DIR / "small" if weights is None else weights,
-        layout_without_mask=not one_sample,
+    folder = WEIGHTS_DIR / "small" if weights is None else weights
+    if not sampling:
+        return PActGenerator.load(folder, layout_without_mask=not one_sample)
+    base = PActGenerator.load(folder, layout_without_mask=not one_sample)
+    s1 = base.stage1.sampler
+    s2 = base.sampler
+    interval = tuple(sampling.get("cfg_interval", s2.cfg_interval))
+    s1 = dataclasses.replace(
+        s1, steps=sampling.get("stage1_steps", s1.steps), cfg_interval=interval
     )
+    s2 = dataclasses.replace(s2, cfg_interval=interval)
+    return PActGenerator.load(
+        folder,
+        layout_without_mask=not one_sample,
+        candidates=sampling.get("candidates", base.stage1.candidates),
+        stage1_sampler=s1,
+        sampler=s2,
+    )
+
+
+def sampling_options(args: argparse.Namespace) -> dict:
+    """PAct sampling changes asked on the command line (none: the shipped settings)."""
+    out: dict = {}
+    if args.candidates is not None:
+        out["candidates"] = args.candidates
+    if args.stage1_steps is not None:
+        out["stage1_steps"] = args.stage1_steps
+    if args.cfg_interval is not None:
+        out["cfg_interval"] = tuple(args.cfg_interval)
+    return out
+
+
+def sampling_tag(sampling: dict) -> str:
+    """The predictions folder's suffix for changed sampling, e.g. ``-cand4-s1steps12``."""
+    tag = ""
+    if "candidates" in sampling:
+        tag += f"-cand{sampling['candidates']}"
+    if "stage1_steps" in sampling:
+        tag += f"-s1steps{sampling['stage1_steps']}"
+    if "cfg_interval" in sampling:
+        tag += "-cfg{:g}-{:g}".format(*sampling["cfg_interval"])
+    return tag
 
 
 def _inputs(split_dir: Path, iid: str, no_mask: bool, category_hint: bool, parser=None):  # noqa: ANN001, ANN202
@@ -143,10 +186,12 @@ def run(args: argparse.Namespace, name: str, split_dir: Path) -> dict[str, Any]:
     """Generate from every image of the split with generator ``name``; the run's JSON."""
     weights = args.weights if name == "pact" else None
     one_sample = args.one_sample_without_mask and name == "pact"
-    gen = load_generator(name, weights, one_sample)
+    sampling = sampling_options(args) if name == "pact" else {}
+    gen = load_generator(name, weights, one_sample, sampling)
     tag = (
         f"pred-{name}"
         + (f"-{weights.name}" if weights is not None else "")
+        + sampling_tag(sampling)
         + ("-nomask" if args.no_mask else "")
         + ("-onesample" if one_sample else "")
         + ("-hint" if args.category_hint else "")
@@ -308,6 +353,18 @@ def main() -> None:
         default=None,
         help="PAct weights folder (laid out as generator/pact/weights/small); predictions "
         "go to pred-pact-<folder name>",
+    )
+    ap.add_argument(
+        "--candidates", type=int, default=None, help="PAct: stage-1 samples per masked photo"
+    )
+    ap.add_argument("--stage1-steps", type=int, default=None, help="PAct: stage-1 Euler steps")
+    ap.add_argument(
+        "--cfg-interval",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("LO", "HI"),
+        help="PAct: guidance only at the steps with t in [LO, HI], both stages",
     )
     args = ap.parse_args()
 

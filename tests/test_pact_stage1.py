@@ -220,6 +220,30 @@ def test_sampling_is_deterministic_for_a_seed_and_reports_features():
     assert steps[0][2] == (2, 3, TINY_FLOW.tokens_per_part, TINY_FLOW.width)
 
 
+def test_guidance_interval_guides_only_the_steps_inside_it():
+    """Outside cfg_interval a step is the conditional prediction alone: an interval no
+    step falls in samples exactly as cfg_scale 1 everywhere; [0.5, 1] runs the 2B batch
+    only on the steps with t >= 0.5 and gives a sample between the two."""
+    model = build("part_flow", TINY_FLOW).eval()
+    randomize_modulation(model)
+    _, cond, mask = tiny_inputs()
+    batches = []
+    model.register_forward_hook(lambda mod, args, out: batches.append(args[0].shape[0]))
+
+    def draw(**kw):
+        return sample(model, cond, mask, SamplerConfig(steps=4, **kw),
+                      torch.Generator().manual_seed(7))[0]  # fmt: skip
+
+    never = draw(cfg_scale=5.0, cfg_interval=(2.0, 3.0))
+    plain = draw(cfg_scale=1.0)
+    batches.clear()
+    half = draw(cfg_scale=5.0, cfg_interval=(0.5, 1.0))
+    assert batches == [4, 4, 4, 2]  # t = 1, 0.75, 0.5 guided (2B), t = 0.25 not (B = 2)
+    full = draw(cfg_scale=5.0)
+    assert torch.allclose(never, plain, atol=1e-5)
+    assert not torch.allclose(half, full, atol=1e-4) and not torch.allclose(half, plain, atol=1e-4)
+
+
 def test_flow_interpolation_and_time_sampling():
     x0, eps = torch.randn(4, 3, 2), torch.randn(4, 3, 2)
     assert torch.allclose(noisy(x0, eps, torch.zeros(4)), x0)

@@ -238,6 +238,25 @@ def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
     assert not torch.allclose(x, guided)
 
 
+def test_stage2_guidance_interval_outside_is_the_conditional_step():
+    torch.manual_seed(0)
+    flow = Stage2FlowTransformer(TINY_FLOW).eval()
+    _randomize(flow)
+    toks, _ = _tiny_tokens()
+    batch = collate([toks], TINY_FLOW.max_tokens)
+    cond = torch.randn(1, 5, 16)
+
+    def draw(**kw):
+        return sample_stage2(flow, batch, cond, Stage2SamplerConfig(steps=4, **kw),
+                             torch.Generator().manual_seed(3))  # fmt: skip
+
+    never = draw(cfg_scale=3.0, cfg_interval=(2.0, 3.0))
+    assert torch.allclose(never, draw(cfg_scale=1.0), atol=1e-5)
+    half = draw(cfg_scale=3.0, cfg_interval=(0.5, 1.0))
+    assert not torch.allclose(half, never, atol=1e-4)
+    assert not torch.allclose(half, draw(cfg_scale=3.0), atol=1e-4)
+
+
 def test_x0_prediction_velocity_by_hand():
     """predict="x0" with the zero-initialised output layer: x0_hat = 0, so the velocity is
     x_t / t on token voxels and 0 elsewhere."""

@@ -4,7 +4,10 @@ x_t = (1 - t) x_0 + t * eps, t = 0 is data and t = 1 is noise, the network predi
 velocity v = eps - x_0. Training times are logit-normal, t = sigmoid(N(mean, std)) with
 mean 1.0, std 1.0 as in TRELLIS's flow trainer (biased towards noise). Sampling is Euler
 from t = 1 to t = 0 with classifier-free guidance v = v_u + s (v_c - v_u), where the
-unconditional branch zeroes the image tokens and uses the "no mask" row.
+unconditional branch zeroes the image tokens and uses the "no mask" row. Guidance may be
+limited to an interval of t (``SamplerConfig.cfg_interval``, TRELLIS's guidance-interval
+sampler): outside it the step is the conditional prediction alone, one forward pass of B
+instead of 2B.
 """
 
 from __future__ import annotations
@@ -39,6 +42,14 @@ class SamplerConfig:
     steps: int = 25
     cfg_scale: float = 7.0
     rescale_t: float = 1.0  # TRELLIS's t' = s t / (1 + (s - 1) t); 1.0 = uniform steps
+    # guidance only at steps whose t lies in [lo, hi]; the others take v_c (one pass)
+    cfg_interval: tuple[float, float] = (0.0, 1.0)
+
+
+def guided_at(t: float, interval: tuple[float, float]) -> bool:
+    """Whether the sampler step at time ``t`` uses classifier-free guidance."""
+    lo, hi = interval
+    return lo <= t <= hi
 
 
 # called once per Euler step with (step index, t, last-block features (B, K, L, D))
@@ -155,9 +166,11 @@ def sample(
     exists = torch.zeros(B, mcfg.max_parts, device=device)
     for i in range(cfg.steps):
         t, t_next = float(ts[i]), float(ts[i + 1])
-        out = guided_velocity(
-            model, x, torch.full((B,), t, device=device), cond, mask, cfg.cfg_scale
-        )
+        tt = torch.full((B,), t, device=device)
+        if cond is not None and not guided_at(t, cfg.cfg_interval):
+            out = model(x, tt, cond, mask)  # the conditional branch alone
+        else:
+            out = guided_velocity(model, x, tt, cond, mask, cfg.cfg_scale)
         if callback is not None:
             callback(i, t, out.features)
         x = x + (t_next - t) * out.velocity.float()

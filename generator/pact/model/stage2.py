@@ -27,7 +27,7 @@ from generator.pact.model.articulation import (
     articulation_loss,
     pool_parts,
 )
-from generator.pact.model.flow import noisy, rand, randn, sample_t
+from generator.pact.model.flow import guided_at, noisy, rand, randn, sample_t
 from generator.pact.model.image_encoder import ViTConfig
 from generator.pact.model.slat_vae import SlatVAEConfig, SlatVAETrainConfig, shell_voxels
 from generator.pact.model.stage1 import ConfigMismatchError
@@ -53,6 +53,8 @@ class Stage2SamplerConfig:
     cfg_scale: float = 3.0
     rescale_t: float = 1.0
     agg_steps: int = 20  # S: features averaged over the last S steps
+    # guidance only at steps whose t lies in [lo, hi] (flow.guided_at); the others v_c
+    cfg_interval: tuple[float, float] = (0.0, 1.0)
 
 
 @dataclass
@@ -261,7 +263,8 @@ def sample_stage2(
     callback: FeatureAggregator | None = None,
 ) -> torch.Tensor:
     """Euler sampling from t = 1 to 0 with CFG (v_u + s (v_c - v_u), null = zero image
-    tokens). Returns normalized latents (B, L, p^3 C), zero where no token voxel.
+    tokens) at the steps whose t lies in ``cfg.cfg_interval``, v_c alone at the others.
+    Returns normalized latents (B, L, p^3 C), zero where no token voxel.
 
     ``callback(step_index, t, features)`` gets the conditional branch's last-block
     features (B, L, D) at every step. Deterministic for a given ``generator`` seed.
@@ -276,8 +279,8 @@ def sample_stage2(
     for i in range(cfg.steps):
         t, t_next = float(ts[i]), float(ts[i + 1])
         tt = torch.full((B,), t, device=device)
-        if cond is None:
-            out = flow(tokens.with_x(x), tt, None)
+        if cond is None or not guided_at(t, cfg.cfg_interval):
+            out = flow(tokens.with_x(x), tt, cond)  # unguided: the conditional branch
             v, feats = out.velocity.float(), out.features
         else:
             both = TokenBatch(*(torch.cat([a, a]) for a in tokens.with_x(x)))
