@@ -6,7 +6,8 @@
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--views N] [--weights FOLDER]
         [--dev-half A|B] [--parser [--parser-weights FOLDER]]
-        [--candidates N] [--stage1-steps N] [--cfg-interval LO HI]
+        [--candidates N] [--stage1-steps N] [--stage1-cfg-interval LO HI]
+        [--stage2-cfg-interval LO HI]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
 the generator on every image (with its mask unless ``--no-mask``; the category hint is
@@ -68,7 +69,7 @@ def load_generator(  # noqa: ANN201
     generator/pact/weights/small) when given, else the shipped small model; with
     ``one_sample``, PAct without a mask keeps one stage-1 sample as drawn
     (``Stage1Generator(layout_without_mask=False)``). ``sampling`` (:func:`sampling_options`)
-    changes PAct's sampling: stage-1 candidates and steps, both stages' guidance interval."""
+    changes PAct's sampling: stage-1 candidates and steps, each stage's guidance interval."""
     if name == "retrieval":
         from generator.retrieval import RetrievalGenerator
 
@@ -79,13 +80,15 @@ def load_generator(  # noqa: ANN201
     if not sampling:
         return PActGenerator.load(folder, layout_without_mask=not one_sample)
     base = PActGenerator.load(folder, layout_without_mask=not one_sample)
-    s1 = base.stage1.sampler
-    s2 = base.sampler
-    interval = tuple(sampling.get("cfg_interval", s2.cfg_interval))
+    s1, s2 = base.stage1.sampler, base.sampler
     s1 = dataclasses.replace(
-        s1, steps=sampling.get("stage1_steps", s1.steps), cfg_interval=interval
+        s1,
+        steps=sampling.get("stage1_steps", s1.steps),
+        cfg_interval=tuple(sampling.get("stage1_cfg_interval", s1.cfg_interval)),
     )
-    s2 = dataclasses.replace(s2, cfg_interval=interval)
+    s2 = dataclasses.replace(
+        s2, cfg_interval=tuple(sampling.get("stage2_cfg_interval", s2.cfg_interval))
+    )
     return PActGenerator.load(
         folder,
         layout_without_mask=not one_sample,
@@ -102,20 +105,23 @@ def sampling_options(args: argparse.Namespace) -> dict:
         out["candidates"] = args.candidates
     if args.stage1_steps is not None:
         out["stage1_steps"] = args.stage1_steps
-    if args.cfg_interval is not None:
-        out["cfg_interval"] = tuple(args.cfg_interval)
+    for stage in ("stage1", "stage2"):
+        interval = getattr(args, f"{stage}_cfg_interval")
+        if interval is not None:
+            out[f"{stage}_cfg_interval"] = tuple(interval)
     return out
 
 
 def sampling_tag(sampling: dict) -> str:
-    """The predictions folder's suffix for changed sampling, e.g. ``-cand4-s1steps12``."""
+    """The predictions folder's suffix for changed sampling, e.g. ``-cand4-s1cfg0.5-1``."""
     tag = ""
     if "candidates" in sampling:
         tag += f"-cand{sampling['candidates']}"
     if "stage1_steps" in sampling:
         tag += f"-s1steps{sampling['stage1_steps']}"
-    if "cfg_interval" in sampling:
-        tag += "-cfg{:g}-{:g}".format(*sampling["cfg_interval"])
+    for stage, short in (("stage1", "s1"), ("stage2", "s2")):
+        if f"{stage}_cfg_interval" in sampling:
+            tag += "-{}cfg{:g}-{:g}".format(short, *sampling[f"{stage}_cfg_interval"])
     return tag
 
 
@@ -358,14 +364,15 @@ def main() -> None:
         "--candidates", type=int, default=None, help="PAct: stage-1 samples per masked photo"
     )
     ap.add_argument("--stage1-steps", type=int, default=None, help="PAct: stage-1 Euler steps")
-    ap.add_argument(
-        "--cfg-interval",
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=("LO", "HI"),
-        help="PAct: guidance only at the steps with t in [LO, HI], both stages",
-    )
+    for stage in ("stage1", "stage2"):
+        ap.add_argument(
+            f"--{stage}-cfg-interval",
+            type=float,
+            nargs=2,
+            default=None,
+            metavar=("LO", "HI"),
+            help=f"PAct {stage}: guidance only at the steps with t in [LO, HI]",
+        )
     args = ap.parse_args()
 
     split_dir = args.split_dir or (
