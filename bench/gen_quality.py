@@ -6,7 +6,7 @@
         [--split-dir /work/data/real_split] [--no-mask] [--category-hint] [--limit N]
         [--categories microwave oven ...] [--styles product room] [--views N] [--weights FOLDER]
         [--dev-half A|B] [--parser [--parser-weights FOLDER]]
-        [--candidates N] [--stage1-steps N] [--stage1-cfg-interval LO HI]
+        [--seed N] [--candidates N] [--stage1-steps N] [--stage1-cfg-interval LO HI]
         [--stage2-cfg-interval LO HI]
 
 Test split (the default): writes the split once (``generator.data.test_split``), runs
@@ -69,7 +69,8 @@ def load_generator(  # noqa: ANN201
     generator/pact/weights/small) when given, else the shipped small model; with
     ``one_sample``, PAct without a mask keeps one stage-1 sample as drawn
     (``Stage1Generator(layout_without_mask=False)``). ``sampling`` (:func:`sampling_options`)
-    changes PAct's sampling: stage-1 candidates and steps, each stage's guidance interval."""
+    changes PAct's sampling: the seed, stage-1 candidates and steps, each stage's guidance
+    interval."""
     if name == "retrieval":
         from generator.retrieval import RetrievalGenerator
 
@@ -77,9 +78,10 @@ def load_generator(  # noqa: ANN201
     from generator.pact.inference.generate import WEIGHTS_DIR, PActGenerator
 
     folder = WEIGHTS_DIR / "small" if weights is None else weights
-    if not sampling:
-        return PActGenerator.load(folder, layout_without_mask=not one_sample)
-    base = PActGenerator.load(folder, layout_without_mask=not one_sample)
+    seed = sampling.get("seed", 0) if sampling else 0
+    base = PActGenerator.load(folder, layout_without_mask=not one_sample, seed=seed)
+    if not sampling or set(sampling) == {"seed"}:
+        return base
     s1, s2 = base.stage1.sampler, base.sampler
     s1 = dataclasses.replace(
         s1,
@@ -95,12 +97,15 @@ def load_generator(  # noqa: ANN201
         candidates=sampling.get("candidates", base.stage1.candidates),
         stage1_sampler=s1,
         sampler=s2,
+        seed=seed,
     )
 
 
 def sampling_options(args: argparse.Namespace) -> dict:
     """PAct sampling changes asked on the command line (none: the shipped settings)."""
     out: dict = {}
+    if args.seed:
+        out["seed"] = args.seed
     if args.candidates is not None:
         out["candidates"] = args.candidates
     if args.stage1_steps is not None:
@@ -115,6 +120,8 @@ def sampling_options(args: argparse.Namespace) -> dict:
 def sampling_tag(sampling: dict) -> str:
     """The predictions folder's suffix for changed sampling, e.g. ``-cand4-s1cfg0.5-1``."""
     tag = ""
+    if "seed" in sampling:
+        tag += f"-seed{sampling['seed']}"
     if "candidates" in sampling:
         tag += f"-cand{sampling['candidates']}"
     if "stage1_steps" in sampling:
@@ -364,6 +371,7 @@ def main() -> None:
         "--candidates", type=int, default=None, help="PAct: stage-1 samples per masked photo"
     )
     ap.add_argument("--stage1-steps", type=int, default=None, help="PAct: stage-1 Euler steps")
+    ap.add_argument("--seed", type=int, default=0, help="PAct: the sampling seed")
     for stage in ("stage1", "stage2"):
         ap.add_argument(
             f"--{stage}-cfg-interval",
