@@ -77,28 +77,23 @@ def load_generator(  # noqa: ANN201
         return RetrievalGenerator.default()
     from generator.pact.inference.generate import WEIGHTS_DIR, PActGenerator
 
-    folder = WEIGHTS_DIR / "small" if weights is None else weights
-    seed = sampling.get("seed", 0) if sampling else 0
-    base = PActGenerator.load(folder, layout_without_mask=not one_sample, seed=seed)
-    if not sampling or set(sampling) == {"seed"}:
-        return base
-    s1, s2 = base.stage1.sampler, base.sampler
-    s1 = dataclasses.replace(
+    sampling = sampling or {}
+    gen = PActGenerator.load(
+        WEIGHTS_DIR / "small" if weights is None else weights,
+        layout_without_mask=not one_sample,
+        seed=sampling.get("seed", 0),
+        **({"candidates": sampling["candidates"]} if "candidates" in sampling else {}),
+    )
+    s1, s2 = gen.stage1.sampler, gen.sampler
+    gen.stage1.sampler = dataclasses.replace(
         s1,
         steps=sampling.get("stage1_steps", s1.steps),
         cfg_interval=tuple(sampling.get("stage1_cfg_interval", s1.cfg_interval)),
     )
-    s2 = dataclasses.replace(
+    gen.sampler = dataclasses.replace(
         s2, cfg_interval=tuple(sampling.get("stage2_cfg_interval", s2.cfg_interval))
     )
-    return PActGenerator.load(
-        folder,
-        layout_without_mask=not one_sample,
-        candidates=sampling.get("candidates", base.stage1.candidates),
-        stage1_sampler=s1,
-        sampler=s2,
-        seed=seed,
-    )
+    return gen
 
 
 def sampling_options(args: argparse.Namespace) -> dict:

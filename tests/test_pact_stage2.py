@@ -35,7 +35,7 @@ from generator.pact.model.stage2 import (
     training_step,
     untokenize,
 )
-from generator.pact.model.stage2_flow import Stage2FlowConfig, Stage2FlowTransformer
+from generator.pact.model.stage2_flow import Stage2FlowConfig, Stage2FlowTransformer, TokenBatch
 from generator.pact.training.stage2_data import primitive_sdf, subsample_points
 
 
@@ -212,13 +212,17 @@ def _randomize(flow: Stage2FlowTransformer) -> None:
             p.add_(torch.randn_like(p) * 0.05)
 
 
-def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
+def _sampling_inputs() -> tuple[Stage2FlowTransformer, TokenBatch, torch.Tensor]:
+    """A randomized tiny flow, one object's token batch and its image tokens."""
     torch.manual_seed(0)
     flow = Stage2FlowTransformer(TINY_FLOW).eval()
     _randomize(flow)
     toks, _ = _tiny_tokens()
-    batch = collate([toks], TINY_FLOW.max_tokens)
-    cond = torch.randn(1, 5, 16)
+    return flow, collate([toks], TINY_FLOW.max_tokens), torch.randn(1, 5, 16)
+
+
+def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
+    flow, batch, cond = _sampling_inputs()
     sampler = Stage2SamplerConfig(steps=4, cfg_scale=1.0)
     x = sample_stage2(flow, batch, cond, sampler, torch.Generator().manual_seed(3))
     # reference: plain conditional Euler from the same noise
@@ -239,12 +243,7 @@ def test_cfg_scale_one_equals_conditional_and_sampling_is_deterministic():
 
 
 def test_stage2_guidance_interval_outside_is_the_conditional_step():
-    torch.manual_seed(0)
-    flow = Stage2FlowTransformer(TINY_FLOW).eval()
-    _randomize(flow)
-    toks, _ = _tiny_tokens()
-    batch = collate([toks], TINY_FLOW.max_tokens)
-    cond = torch.randn(1, 5, 16)
+    flow, batch, cond = _sampling_inputs()
 
     def draw(**kw):
         return sample_stage2(flow, batch, cond, Stage2SamplerConfig(steps=4, **kw),
