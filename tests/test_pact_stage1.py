@@ -223,7 +223,7 @@ def test_sampling_is_deterministic_for_a_seed_and_reports_features():
 def test_guidance_interval_guides_only_the_steps_inside_it():
     """Outside cfg_interval a step is the conditional prediction alone: an interval no
     step falls in samples exactly as cfg_scale 1 everywhere; [0.5, 1] runs the 2B batch
-    only on the steps with t >= 0.5 and gives a sample between the two."""
+    only on the steps with t >= 0.5 and gives a sample unlike either."""
     model = build("part_flow", TINY_FLOW).eval()
     randomize_modulation(model)
     _, cond, mask = tiny_inputs()

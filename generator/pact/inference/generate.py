@@ -161,17 +161,15 @@ class PActGenerator:
         device: str | None = None,
         candidates: int = 8,
         layout_without_mask: bool = True,
-        stage1_sampler: Any | None = None,
         **kwargs: Any,
     ) -> PActGenerator:
         """Stage 2 from ``folder/slat_vae`` and ``folder/stage2/{image_encoder,flow,head}``;
         stage 1 from ``folder/ss_vae`` + ``folder/stage1`` when present, drawing
         ``candidates`` samples per image with a part mask, and without one laid out on
         the silhouette unless ``layout_without_mask`` is False (``stage1_generator``).
-        ``stage1_sampler`` (a ``SamplerConfig``) and ``sampler`` (a
-        ``Stage2SamplerConfig``) replace the stages' sampling settings; by default
-        stage 1 samples as its weights' config says and stage 2 as
-        ``Stage2SamplerConfig``'s defaults."""
+        Stage 1 samples as its weights' config says (``.stage1.sampler``, a
+        ``SamplerConfig``), stage 2 as ``sampler`` (a ``Stage2SamplerConfig``, default
+        its defaults); both attributes may be replaced after loading."""
         folder = Path(folder)
         device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         models = {"vae": _load_fp32(folder / "slat_vae", device)}
@@ -195,7 +193,6 @@ class PActGenerator:
                 seed=kwargs.get("seed", 0),
                 candidates=candidates,
                 layout_without_mask=layout_without_mask,
-                sampler=stage1_sampler,
             )
         else:
             log.warning("%s: no stage-1 checkpoints; only generate_from_occupancy works", folder)
