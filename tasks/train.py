@@ -25,6 +25,7 @@ import json
 import logging
 import shutil
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -304,8 +305,8 @@ def sb3_vec_env(venv: gym.vector.VectorEnv):
                 out.append(info)
             return obs, rew.astype(np.float32), done, out
 
-        def close(self) -> None:
-            self.venv.close()
+        def close(self, terminate: bool = False) -> None:
+            self.venv.close(terminate=terminate)
 
         def seed(self, seed: int | None = None):
             self._seed = seed
@@ -824,7 +825,7 @@ def train(args: Args) -> dict[str, Any]:
             signum,
         ) from None
     finally:
-        close_quietly(venv)
+        close_quietly(venv, stopped=sys.exc_info()[0] is not None)
     videos = []
     if args.video_episodes > 0:
         shutil.rmtree(out / "videos", ignore_errors=True)
@@ -846,11 +847,17 @@ def train(args: Args) -> dict[str, Any]:
     }
 
 
-def close_quietly(venv: Any) -> None:
+def close_quietly(venv: Any, stopped: bool = False) -> None:
     """Close the training envs; workers already ended (a SIGTERM sent to the whole process
-    group reaches them too) leave broken pipes, which are only logged."""
+    group reaches them too) leave broken pipes, which are only logged. ``stopped``: the run
+    ended by an exception (a signal, an error), which may have landed while the main process
+    read some of the workers' step replies and not others; asking such workers to close
+    would wait forever for replies already read, so they are terminated instead."""
     try:
-        venv.close()
+        if stopped:
+            venv.unwrapped.close(terminate=True)
+        else:
+            venv.close()
     except (BrokenPipeError, EOFError, ConnectionError, OSError) as e:
         log.warning("closing the env workers: %s", e)
 

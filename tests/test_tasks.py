@@ -353,6 +353,39 @@ def test_sigterm_saves_the_checkpoint_and_closes_the_workers(
     assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
 
 
+def test_a_stop_mid_step_closes_the_workers_without_waiting() -> None:
+    """A signal can land while the main process has read some workers' step replies and
+    not others. Closing then must end the workers, not wait for replies already read (the
+    hang a SIGTERM sometimes caused); a normal close still shuts them down cleanly."""
+    import functools
+    import threading
+
+    from tasks.train import close_quietly, sb3_vec_env
+
+    def make() -> gym.vector.AsyncVectorEnv:
+        fns = [functools.partial(gym.make, "CartPole-v1")] * 2
+        return gym.vector.AsyncVectorEnv(fns, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+
+    inner = make()
+    venv = sb3_vec_env(inner)
+    venv.reset()
+    venv.step_async(np.zeros(2, dtype=np.int64))
+    inner.step_async(np.zeros(2, dtype=np.int64))
+    inner.parent_pipes[0].recv()  # the first worker's reply read, the second's not
+    closing = threading.Thread(target=close_quietly, args=(venv,), kwargs={"stopped": True})
+    closing.daemon = True
+    closing.start()
+    closing.join(timeout=60)
+    assert not closing.is_alive(), "close waited on a step reply already read"
+    assert not any(p.is_alive() for p in inner.processes)
+
+    inner = make()
+    venv = sb3_vec_env(inner)
+    venv.reset()
+    close_quietly(venv)
+    assert inner.closed and not any(p.is_alive() for p in inner.processes)
+
+
 def test_obs_norm_matches_vec_normalize():
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
