@@ -115,6 +115,8 @@ _FACES = {
     "top": [_corner(-1, -1, 1), _corner(1, -1, 1), _corner(1, 1, 1), _corner(-1, 1, 1)],
 }
 
+_FACE_CORNERS = np.array([_FACES[name] for name in ("front", "left", "right", "top")])
+
 
 @dataclass(frozen=True)
 class BoxCamera:
@@ -178,12 +180,11 @@ def _square_crop(image: np.ndarray, side: int) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _pixel_grid(G: int) -> tuple[np.ndarray, np.ndarray]:
-    """(G, G) column and row coordinates of the pixel centres of a unit square, G a side."""
+def _pixel_centres(G: int) -> np.ndarray:
+    """(G,) coordinates of the pixel centres along a side of a unit square of G pixels."""
     g = (np.arange(G) + 0.5) / G
-    U, V = np.meshgrid(g, g)
-    U.flags.writeable = V.flags.writeable = False
-    return U, V
+    g.flags.writeable = False
+    return g
 
 
 def _scores(
@@ -196,31 +197,32 @@ def _scores(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(score, silhouette IoU), each (B,), of B boxes ``half`` (B, 3) in one view against
     the square-cropped silhouette and movable-part pixels (G, G) bool."""
-    U, V = _pixel_grid(silhouette.shape[0])
+    G = silhouette.shape[0]
+    g = _pixel_centres(G)
     p = _project(_CORNERS[None] * half[:, None, :], azimuth, elevation, half, fovy)  # (B, 8, 2)
     lo, hi = p.min(axis=1), p.max(axis=1)
     side = (hi - lo).max(axis=1)
     lo = (lo + hi) / 2 - side[:, None] / 2
-    pu = lo[:, 0, None, None] + U[None] * side[:, None, None]
-    pv = lo[:, 1, None, None] + V[None] * side[:, None, None]
-    inside = {}
-    for name, face in _FACES.items():
-        quad = p[:, face]  # (B, 4, 2), convex
-        pos = np.ones(pu.shape, bool)
-        neg = np.ones(pu.shape, bool)
-        for i in range(4):
-            a, b = quad[:, i], quad[:, (i + 1) % 4]
-            cross = (b[:, 0] - a[:, 0])[:, None, None] * (pv - a[:, 1, None, None]) - (
-                b[:, 1] - a[:, 1]
-            )[:, None, None] * (pu - a[:, 0, None, None])
-            pos &= cross >= 0
-            neg &= cross <= 0
-        inside[name] = pos | neg
-    box = inside["front"] | inside["left"] | inside["right"] | inside["top"]
+    # the raster's pixel centres: column u and row v, the same for every row / column
+    pu = (lo[:, 0, None] + g[None] * side[:, None])[:, None]  # (B, 1, G)
+    pv = (lo[:, 1, None] + g[None] * side[:, None])[:, None]
+    quad = p[:, _FACE_CORNERS]  # (B, 4 faces, 4 corners, 2), each face convex
+    pos = np.ones((len(p), 4, G, G), bool)
+    neg = pos.copy()
+    for i in range(4):  # a pixel centre is inside a face when on one side of all its edges
+        a, b = quad[:, :, i, :, None], quad[:, :, (i + 1) % 4, :, None]
+        # the edge's cross product with the pixel centre, (b - a) x (p - a), is a term of
+        # the row less a term of the column: compared, not subtracted, on the raster
+        rows = (b[:, :, 0] - a[:, :, 0]) * (pv - a[:, :, 1])  # (B, 4, G)
+        cols = (b[:, :, 1] - a[:, :, 1]) * (pu - a[:, :, 0])
+        pos &= rows[..., :, None] >= cols[..., None, :]
+        neg &= rows[..., :, None] <= cols[..., None, :]
+    inside = pos | neg  # (B, 4, G, G)
+    box = inside.any(axis=1)
     inter = (box & silhouette).sum(axis=(1, 2))
     iou = inter / np.maximum(box.sum(axis=(1, 2)) + silhouette.sum() - inter, 1)
     if parts.any():
-        contained = (inside["front"] & parts).sum(axis=(1, 2)) / parts.sum()
+        contained = (inside[:, 0] & parts).sum(axis=(1, 2)) / parts.sum()
     else:
         contained = np.ones(len(half))
     return iou + CONTAINMENT_WEIGHT * contained, iou
