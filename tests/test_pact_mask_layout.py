@@ -107,6 +107,30 @@ def _chest_camera(ids, azimuth_deg, elevation_deg):
     )
 
 
+def test_scores_of_a_box_seen_from_the_front_are_its_front_rectangle():
+    """Seen head-on (azimuth and elevation 0) a box's silhouette is its front face (the
+    back is further away, so smaller and hidden): a box as high as half its width fills
+    the middle half of the rows of its bounding square, all columns. Against that
+    silhouette its IoU is 1, a box as high as wide (the whole square) 0.5, and movable
+    pixels inside the front count fully (score = IoU + CONTAINMENT_WEIGHT)."""
+    from generator.pact.inference.mask_layout import CONTAINMENT_WEIGHT, FOVY, _scores
+
+    G = 40
+    sil = np.zeros((G, G), bool)
+    sil[G // 4 : 3 * G // 4] = True  # rows 10-29: centres (r + 0.5) / G in (0.25, 0.75)
+    parts = np.zeros((G, G), bool)
+    parts[12:18, 5:11] = True
+    half = np.array([[0.3, 0.5, 0.25], [0.3, 0.5, 0.5]])  # heights 0.5 and 1, width 1
+    score, iou = _scores(sil, parts, 0.0, 0.0, half, FOVY)
+    np.testing.assert_allclose(iou, [1.0, 0.5])
+    np.testing.assert_allclose(score, iou + CONTAINMENT_WEIGHT)
+    # no movable pixel on the front: the containment term is 0
+    outside = np.zeros((G, G), bool)
+    outside[:5] = True
+    score, _ = _scores(sil, outside, 0.0, 0.0, half[:1], FOVY)
+    np.testing.assert_allclose(score, [1.0])
+
+
 def test_edge_score_is_high_where_the_photo_shows_the_box_edges():
     """The photo of a chest whose faces are lit differently: the edge term is high at the
     true view and low at views 12 degrees off (the front/side edge then falls on a face),
