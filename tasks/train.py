@@ -25,7 +25,6 @@ import json
 import logging
 import shutil
 import signal
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -804,6 +803,7 @@ def train(args: Args) -> dict[str, Any]:
                 self.run_eval()
 
     remaining = args.total_timesteps - model.num_timesteps
+    finished = False
     try:
         with stop_on_sigterm():
             if remaining > 0 and (
@@ -816,6 +816,7 @@ def train(args: Args) -> dict[str, Any]:
                     progress_bar=args.progress_bar,
                 )
             save_policy()
+            finished = True
     except (KeyboardInterrupt, TrainingStopped) as stop:
         save_policy()  # resume with --resume
         signum = stop.signum if isinstance(stop, TrainingStopped) else signal.SIGINT
@@ -825,7 +826,7 @@ def train(args: Args) -> dict[str, Any]:
             signum,
         ) from None
     finally:
-        close_quietly(venv, stopped=sys.exc_info()[0] is not None)
+        close_quietly(venv, stopped=not finished)
     videos = []
     if args.video_episodes > 0:
         shutil.rmtree(out / "videos", ignore_errors=True)
