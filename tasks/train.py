@@ -304,8 +304,12 @@ def sb3_vec_env(venv: gym.vector.VectorEnv):
                 out.append(info)
             return obs, rew.astype(np.float32), done, out
 
-        def close(self, terminate: bool = False) -> None:
-            self.venv.close(terminate=terminate)
+        def close(self) -> None:
+            self.venv.close()
+
+        def terminate_workers(self) -> None:
+            """End the env processes without waiting for their replies (a stopped run)."""
+            self.venv.close(terminate=True)
 
         def seed(self, seed: int | None = None):
             self._seed = seed
@@ -853,10 +857,11 @@ def close_quietly(venv: Any, stopped: bool = False) -> None:
     group reaches them too) leave broken pipes, which are only logged. ``stopped``: the run
     ended by an exception (a signal, an error), which may have landed while the main process
     read some of the workers' step replies and not others; asking such workers to close
-    would wait forever for replies already read, so they are terminated instead."""
+    would wait forever for replies already read, so they are terminated instead (a GPU env,
+    one process, has no workers to terminate: it is closed)."""
     try:
         if stopped:
-            venv.unwrapped.close(terminate=True)
+            getattr(venv.unwrapped, "terminate_workers", venv.close)()
         else:
             venv.close()
     except (BrokenPipeError, EOFError, ConnectionError, OSError) as e:
