@@ -369,7 +369,6 @@ def test_a_stop_mid_step_closes_the_workers_without_waiting() -> None:
     inner = make()
     venv = sb3_vec_env(inner)
     venv.reset()
-    venv.step_async(np.zeros(2, dtype=np.int64))
     inner.step_async(np.zeros(2, dtype=np.int64))
     inner.parent_pipes[0].recv()  # the first worker's reply read, the second's not
     closing = threading.Thread(target=close_quietly, args=(venv,), kwargs={"stopped": True})
