@@ -14,6 +14,7 @@ from generator.pact.inference.mask_agreement import (
     mask_ids,
     relabel_front,
     render_ids,
+    render_visible,
     sample_mask,
     sample_masks,
     surface_points,
@@ -81,6 +82,24 @@ def test_id_iou_and_mask_ids_by_hand():
     assert out.shape == (4, 4) and set(np.unique(out)) == {1}  # cropped to the silhouette
     with pytest.raises(ValueError, match="empty"):
         mask_ids(np.zeros((5, 5), np.uint8), 3)
+
+
+def test_render_visible_nearest_point_wins_by_hand():
+    """Seen from the front (image right +y, down -z, towards the camera +x): three points
+    on one pixel column at y = 0 (x 0, 2 and 2 again: the nearest wins, the later of two
+    equally near), one at y = 2; a 2 x 1 image, resampled to 4 x 4."""
+    pts = np.array(
+        [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 2.0, 0.0], [0.0, 2.0, 1.0]]
+    )
+    img = render_visible(pts, view_rotation(0.0, 0.0), grid=4)
+    # u = y spans 0..2: ceil(2 / 0.7) = 3 columns (y = 0 in column 0, y = 2 in column 2);
+    # v = -z spans -1..0: ceil(1 / 0.7) = 2 rows (z = 1 in row 0, z = 0 in row 1). The 4
+    # resampled columns read columns 0, 1, 1, 2 and the 4 rows read rows 0, 0, 1, 1.
+    assert img.shape == (4, 4)
+    top, bottom = img[0], img[3]
+    assert list(bottom) == [2, -1, -1, 3]  # y = 0: point 2 (x = 2, after 1); y = 2: point 3
+    assert list(top) == [-1, -1, -1, 4]  # only point 4 is at z = 1
+    assert render_visible(pts, view_rotation(np.pi, 0.0), grid=4)[3, 3] == 0  # from behind
 
 
 def test_agreement_prefers_the_layout_the_mask_shows():

@@ -101,15 +101,21 @@ def render_visible(points: np.ndarray, view: np.ndarray, grid: int = GRID) -> np
     points' bounding box. Rendered at no more than one pixel per ``PIXEL_MIN`` voxels
     along each image axis (so the splatted points leave no holes), then resampled."""
     q = points @ view.T
-    lo, hi = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
-    res = np.clip(np.ceil((hi - lo) / PIXEL_MIN), 1, grid).astype(np.int64)  # (u, v)
-    ij = ((q[:, :2] - lo) / np.maximum(hi - lo, 1e-9) * res).astype(np.int64)
-    ij = np.minimum(ij, res - 1)
-    order = np.argsort(q[:, 2], kind="stable")  # far to near: the nearest is written last
-    img = np.full((res[1], res[0]), -1, np.int64)
-    img[ij[order, 1], ij[order, 0]] = order
+    u, v, depth = q[:, 0], q[:, 1], q[:, 2]
+    lo_u, lo_v = u.min(), v.min()
+    span_u, span_v = u.max() - lo_u, v.max() - lo_v
+    ru = int(min(max(np.ceil(span_u / PIXEL_MIN), 1), grid))
+    rv = int(min(max(np.ceil(span_v / PIXEL_MIN), 1), grid))
+    iu = ((u - lo_u) / max(span_u, 1e-9) * ru).astype(np.int64)
+    iv = ((v - lo_v) / max(span_v, 1e-9) * rv).astype(np.int64)
+    np.minimum(iu, ru - 1, out=iu)
+    np.minimum(iv, rv - 1, out=iv)
+    # far to near: the nearest is written last
+    order = np.argsort(depth, kind="stable")
+    img = np.full(rv * ru, -1, np.int64)
+    img[(iv * ru + iu)[order]] = order
     r = (np.arange(grid) + 0.5) / grid
-    return img[(r * res[1]).astype(np.int64)][:, (r * res[0]).astype(np.int64)]
+    return img.reshape(rv, ru)[(r * rv).astype(np.int64)][:, (r * ru).astype(np.int64)]
 
 
 def render_ids(
