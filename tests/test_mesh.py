@@ -8,7 +8,8 @@ import trimesh
 
 from asset_pipeline.geometry.metric import DEFAULT_HEIGHTS, metric_factor, to_metric
 from generator.articulated import ArticulatedObject, Handle, Joint, Part, Primitive
-from generator.mesh_repair.closing import is_closed_volume, remesh_pitch, watertight
+from generator.mesh_repair.cleaning import union_solids
+from generator.mesh_repair.closing import is_closed_volume, remesh_pitch, slice_closed, watertight
 
 
 def _stacked_boxes() -> trimesh.Trimesh:
@@ -67,6 +68,34 @@ def test_large_hole_triggers_voxel_remesh_with_colours():
     low = out.vertices[:, 2] < -0.1
     high = out.vertices[:, 2] > 0.1
     assert (vc[low, 0] == 255).all() and (vc[high, 2] == 255).all()
+
+
+def test_slice_closed_caps_a_union_of_differently_coloured_solids():
+    """Two unit cubes of different colours side by side (x 0..1 red, 1..2 green), joined
+    by union_solids: closed only with the vertices where the colours meet merged. Cut at
+    x = 1.75 keeping x < 1.75, the piece is closed, 1.75 cubic units, red then green (the
+    cut's vertices nearest the green cube's far corners)."""
+    red = trimesh.creation.box((1, 1, 1))
+    red.apply_translation((0.5, 0.5, 0.5))
+    red.visual.vertex_colors = [255, 0, 0, 255]
+    green = trimesh.creation.box((1, 1, 1))
+    green.apply_translation((1.5, 0.5, 0.5))
+    green.visual.vertex_colors = [0, 255, 0, 255]
+    both = union_solids([red, green])
+    assert not both.is_watertight and is_closed_volume(both)  # split where colours meet
+    cut = slice_closed(both, np.array([-1.0, 0.0, 0.0]), np.array([1.75, 0.0, 0.0]))
+    assert cut.is_watertight and is_closed_volume(cut)
+    assert cut.volume == pytest.approx(1.75)
+    np.testing.assert_allclose(cut.bounds, [[0, 0, 0], [1.75, 1, 1]], atol=1e-9)
+    colours = np.asarray(cut.visual.vertex_colors)[:, :3]
+    x = cut.vertices[:, 0]
+    assert (colours[x < 0.5] == [255, 0, 0]).all() and (colours[x > 1.5] == [0, 255, 0]).all()
+    # an open mesh is cut open; a plane past the mesh leaves nothing
+    open_box = trimesh.creation.box((1, 1, 1))
+    open_box.update_faces(np.arange(len(open_box.faces)) != 0)
+    half = slice_closed(open_box, np.array([0.0, 0.0, 1.0]), np.zeros(3))
+    assert half is not None and not half.is_watertight
+    assert slice_closed(red, np.array([1.0, 0.0, 0.0]), np.array([5.0, 0.0, 0.0])) is None
 
 
 def test_remesh_pitch_thin_part():

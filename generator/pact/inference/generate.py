@@ -45,6 +45,7 @@ from scipy.spatial import cKDTree
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout, robust_bounds
 from generator.mesh_repair.cleaning import clean_mesh, drop_slivers, panel_and_handle, union_solids
+from generator.mesh_repair.closing import slice_closed
 from generator.mesh_repair.decimation import DEFAULT_VISUAL_FACES, light_object
 from generator.pact.inference.sweep_clearance import keep_sweeps_apart
 from generator.pact.model.articulation import (
@@ -680,10 +681,8 @@ def clip_from_neighbours(
         normal[i] = -toward  # keep the part's side of the plane
         origin = np.zeros(3)
         origin[i] = at
-        cut = trimesh.intersections.slice_mesh_plane(
-            out, normal, origin, cap=bool(out.is_watertight)
-        )
-        if cut is None or len(cut.faces) == 0:
+        cut = slice_closed(out, normal, origin)
+        if cut is None:
             return mesh
         out = cut
     if out is not mesh and getattr(mesh.visual, "kind", None) == "vertex":
@@ -705,11 +704,8 @@ def door_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
     x0 = float(mesh.bounds[1, 0]) - thickness
     if x0 <= float(mesh.bounds[0, 0]):
         return mesh
-    try:
-        slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0], cap=True)
-    except ValueError:  # the cap's triangulation failed (a degenerate cross-section)
-        slab = mesh.slice_plane([x0, 0.0, 0.0], [1.0, 0.0, 0.0])
-    if slab is None or len(slab.faces) == 0:
+    slab = slice_closed(mesh, np.array([1.0, 0.0, 0.0]), np.array([x0, 0.0, 0.0]))
+    if slab is None:
         return mesh
     visual = mesh.visual.to_color() if hasattr(mesh.visual, "to_color") else mesh.visual
     colours = np.asarray(visual.vertex_colors)

@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from generator.articulated import Joint
+from generator.mesh_repair.closing import slice_closed
 
 #: States sampled over a joint's range for its swept box (a quarter turn in 16 steps:
 #: the bulge's maximum lies between two samples within 0.1 % of the width).
@@ -96,9 +96,9 @@ def _cut_planes(
 
 
 def _cut(mesh: trimesh.Trimesh, axis: int, at: float, keep_below: bool) -> trimesh.Trimesh:
-    """``mesh`` cut by the plane ``x[axis] = at``, the side below (or above) kept,
-    capped when closed and coloured as the nearest old vertex; ``mesh`` when the cut
-    leaves nothing or is not needed."""
+    """``mesh`` cut by the plane ``x[axis] = at``, the side below (or above) kept
+    (:func:`generator.mesh_repair.closing.slice_closed`: capped when closed, coloured as
+    the nearest old vertex); ``mesh`` when the cut leaves nothing or is not needed."""
     lo, hi = mesh.bounds
     if (hi[axis] <= at) if keep_below else (lo[axis] >= at):
         return mesh
@@ -106,18 +106,8 @@ def _cut(mesh: trimesh.Trimesh, axis: int, at: float, keep_below: bool) -> trime
     normal[axis] = -1.0 if keep_below else 1.0
     origin = np.zeros(3)
     origin[axis] = at
-    try:
-        out = trimesh.intersections.slice_mesh_plane(
-            mesh, normal, origin, cap=bool(mesh.is_watertight)
-        )
-    except ValueError:  # the cap's triangulation failed
-        out = trimesh.intersections.slice_mesh_plane(mesh, normal, origin)
-    if out is None or len(out.faces) == 0:
-        return mesh
-    if getattr(mesh.visual, "kind", None) == "vertex":
-        _, near = cKDTree(mesh.vertices).query(out.vertices)
-        out.visual.vertex_colors = np.asarray(mesh.visual.vertex_colors)[near]
-    return out
+    out = slice_closed(mesh, normal, origin)
+    return mesh if out is None else out
 
 
 def keep_sweeps_apart(
