@@ -87,7 +87,7 @@ def test_id_iou_and_mask_ids_by_hand():
 def test_render_visible_nearest_point_wins_by_hand():
     """Seen from the front (image right +y, down -z, towards the camera +x): three points
     on one pixel column at y = 0 (x 0, 2 and 2 again: the nearest wins, the later of two
-    equally near), one at y = 2; a 2 x 1 image, resampled to 4 x 4."""
+    equally near), one at y = 2, one at z = 1; a 3 x 2 image, resampled to 4 x 4."""
     pts = np.array(
         [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 2.0, 0.0], [0.0, 2.0, 1.0]]
     )

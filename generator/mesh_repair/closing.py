@@ -80,8 +80,8 @@ def slice_closed(
     runs along the mesh's edges), as merged when it is closed only with its coincident
     vertices merged (a union of differently coloured solids: manifold3d splits the
     vertices where the colours meet). An open mesh is cut open by trimesh, and so is a
-    closed one manifold3d refuses. Vertex colours: every vertex takes the nearest old
-    vertex's. None when nothing is left."""
+    closed one manifold3d refuses. Colours: every vertex takes the nearest old vertex's
+    (:func:`transfer_colors`). None when nothing is left."""
     out = None
     if is_closed_volume(mesh):
         out = _trim_solid(mesh if mesh.is_watertight else _geometry_copy(mesh), normal, origin)
@@ -89,11 +89,7 @@ def slice_closed(
         out = trimesh.intersections.slice_mesh_plane(mesh, normal, origin)
     if out is None or len(out.faces) == 0:
         return None
-    if getattr(mesh.visual, "kind", None) == "vertex" and len(mesh.vertices):
-        _, near = cKDTree(mesh.vertices).query(out.vertices)
-        colours = np.asarray(mesh.visual.vertex_colors)[near]
-        out.visual = trimesh.visual.ColorVisuals(out, vertex_colors=colours)
-    return out
+    return transfer_colors(mesh, out)
 
 
 def _trim_solid(

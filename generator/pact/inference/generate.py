@@ -40,7 +40,6 @@ from typing import Any
 import numpy as np
 import torch
 import trimesh
-from scipy.spatial import cKDTree
 
 from generator.articulated import ArticulatedObject, Joint, Part
 from generator.box_layout import fit_box_layout, robust_bounds
@@ -701,14 +700,7 @@ def door_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
     if x0 <= float(mesh.bounds[0, 0]):
         return mesh
     slab = slice_closed(mesh, np.array([1.0, 0.0, 0.0]), np.array([x0, 0.0, 0.0]))
-    if slab is None:
-        return mesh
-    visual = mesh.visual.to_color() if hasattr(mesh.visual, "to_color") else mesh.visual
-    colours = np.asarray(visual.vertex_colors)
-    slab.visual = trimesh.visual.ColorVisuals(
-        slab, vertex_colors=colours[cKDTree(mesh.vertices).query(slab.vertices)[1]]
-    )
-    return slab
+    return mesh if slab is None else slab
 
 
 def _raw_face_lost(raw: trimesh.Trimesh | None, clean: trimesh.Trimesh | None) -> bool:
