@@ -266,6 +266,26 @@ def test_tiny_parser_api_on_any_photo() -> None:
         assert all((merged.mask[r] == v).all() or not (merged.mask[r] == v).any() for r in regions)
 
 
+def test_bf16_only_where_the_cpu_computes_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    import generator.parser.model as parser_model
+
+    def cpuinfo(flags: str | None):
+        def read_text(self: Path, *a, **k) -> str:
+            if flags is None:
+                raise OSError("no /proc here")
+            return f"processor\t: 0\nflags\t\t: fpu sse2 {flags}\n"
+
+        return read_text
+
+    for flags, native in [("avx2 fma", False), ("avx512f avx512_bf16", True), ("amx_bf16", True)]:
+        monkeypatch.setattr(Path, "read_text", cpuinfo(flags))
+        assert parser_model.cpu_has_native_bf16() is native
+        assert PhotoParser(ParserNet(TINY)).bf16 is native  # the default follows the CPU
+        assert PhotoParser(ParserNet(TINY), bf16=False).bf16 is False  # the caller's wins
+    monkeypatch.setattr(Path, "read_text", cpuinfo(None))
+    assert parser_model.cpu_has_native_bf16() is False
+
+
 def test_shipped_weights_parse_an_example_photo() -> None:
     parser = PhotoParser.default()
     assert PhotoParser.default() is parser  # cached per process

@@ -10,11 +10,13 @@ How (``docs/parser.md``): the photo is letterboxed to the network's size and run
 find the object (unless a silhouette ``alpha`` is given); a square round the object
 (it fills ``fill`` of the side, as in training) is resampled and run again, with its
 mirror image (whose left and right doors swap back). The network's per-pixel
-probabilities (background, base, movable part; a part's edge; six motions) are mapped
-back onto the photo. Parts are the connected components of the movable pixels off the
-edges (tiny ones dropped); the other movable pixels join the nearest part within reach
-(or, far from any, form parts of their own when large enough). A part's motion is the mean of its pixels' motion probabilities; the category is the
-mean of the two views' category probabilities.
+probabilities (background, base, movable part; a part's edge; six motions) and box votes
+are mapped back onto the photo. Parts are the groups of movable pixels that vote for one
+box (:func:`box_groups`; weights without a box head: the connected components of the
+movable pixels off the edges); the other movable pixels join the nearest part within
+reach. A part's motion is the mean of its pixels' motion probabilities; the category is
+the mean of the two views' category probabilities. On a CPU without native bfloat16 the
+network runs in float32 (:func:`~generator.parser.model.cpu_has_native_bf16`).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from scipy import ndimage
 
 from generator.motions import MOTIONS
 from generator.parser.data import FLIP_MOTION, MOTION_PRIOR_NAME, letterbox_matrix
-from generator.parser.model import CATEGORIES, ParserNet, load_weights
+from generator.parser.model import CATEGORIES, ParserNet, cpu_has_native_bf16, load_weights
 
 log = logging.getLogger(__name__)
 
@@ -114,7 +116,7 @@ class PhotoParser:
         reach: float = 0.04,
         edge: float = 0.35,
         grouping: BoxGrouping | None = None,
-        bf16: bool = True,
+        bf16: bool | None = None,
         version: str = "parser-untrained",
         motion_counts: dict[str, dict[str, int]] | None = None,
     ) -> None:
@@ -129,6 +131,9 @@ class PhotoParser:
         # how movable pixels become parts (:func:`instances`)
         self.min_part, self.reach, self.edge = min_part, reach, edge
         self.grouping = grouping or BoxGrouping()
+        # bf16 autocast on a CPU that computes it natively (None: find out), else float32
+        if bf16 is None:
+            bf16 = cpu_has_native_bf16()
         self.bf16 = bf16 and self.device.type == "cpu"
 
     # ------------------------------------------------------------------ construction

@@ -40,7 +40,13 @@ import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
 from generator.parser.data import ParserDataset, StepBatches, mixed_items, write_motion_prior
-from generator.parser.model import ParserConfig, ParserNet, load_weights, save_weights
+from generator.parser.model import (
+    ParserConfig,
+    ParserNet,
+    cpu_has_native_bf16,
+    load_weights,
+    save_weights,
+)
 
 log = logging.getLogger(__name__)
 
@@ -245,6 +251,11 @@ def train(args: Args) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if args.bf16 and device.type == "cpu" and not cpu_has_native_bf16():
+        log.warning(
+            "--bf16 on a CPU without native bfloat16 (no AVX512-BF16 or AMX): torch emulates "
+            "it, about ten times slower than --no-bf16"
+        )
     torch.manual_seed(args.seed)
 
     model = ParserNet(model_config(args))
