@@ -193,6 +193,46 @@ def test_a_second_folder_joins_the_training_items_from_its_own_root(tmp_path: Pa
     assert all(float(ds[i]["image"][:, 20:44, 20:44].max()) == 0.0 for i in (1, 2, 3))
 
 
+def test_training_stopped_by_its_time_limit_leaves_weights_and_resumes(tmp_path: Path) -> None:
+    """The trainer on a one-photo folder: --max-minutes stops it after its first
+    checkpoint with the weights of that step written; the same command then resumes and
+    finishes, its curve one row per checkpoint."""
+    from generator.parser.train import Args, train
+
+    data = tmp_path / "data"
+    _tiny_dataset(data)
+    manifest = json.loads((data / "manifest.json").read_text())
+    manifest["items"].append(dict(manifest["items"][0], split="val"))  # the same photo
+    (data / "manifest.json").write_text(json.dumps(manifest))
+    args = Args(
+        data=str(data),
+        out=str(tmp_path / "run"),
+        steps=3,
+        batch=2,
+        warmup=1,
+        size=64,
+        small_fraction=0.0,
+        channels="8,8,16,16,16",
+        blocks="0,0,1,0,0",
+        decoder_channels="8,8,16,16",
+        bf16=False,
+        workers=0,
+        ckpt_every=1,
+        eval_every=2,
+        max_minutes=1e-9,
+    )
+    out = train(args)
+    step_of = lambda w: json.loads((w / "config.json").read_text())["extra"]["step"]  # noqa: E731
+    assert step_of(out / "weights") == 1  # stopped by the limit, weights still written
+    train(dataclasses.replace(args, max_minutes=0.0))
+    assert step_of(out / "weights") == 3
+    rows = (out / "log.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3"]
+    assert (out / "weights_000002").is_dir()  # the evaluation step's weights
+    model, _ = load_weights(out / "weights")
+    assert model.cfg.image_size == 64
+
+
 def test_step_batches_are_reproducible() -> None:
     a = list(StepBatches(10, 4, seed=1, start=0, stop=5))
     b = list(StepBatches(10, 4, seed=1, start=3, stop=5))

@@ -295,7 +295,8 @@ def train(args: Args) -> Path:
     t_log = time.time()
     autocast = dict(device_type=device.type, dtype=torch.bfloat16, enabled=args.bf16)
     switch = int(args.small_fraction * args.steps)
-    while step < args.steps:
+    timed_out = False
+    while step < args.steps and not timed_out:
         size = args.small_size if step < switch else args.size
         items = (
             mixed_items(args.data, args.extra_data, args.extra_repeat) if args.extra_data else None
@@ -351,9 +352,11 @@ def train(args: Args) -> Path:
                 acc, n_acc, t_log = {}, 0, time.time()
                 if args.max_minutes and (time.time() - t0) / 60 > args.max_minutes:
                     log.info("time limit reached at step %d", step)
-                    return out
+                    timed_out = True
+                    break
             if step >= stop:
                 break
+    # the weights of where the run stopped (its end, or the time limit; a resume goes on)
     save_weights(ema, out / "weights", {"step": step, "args": asdict(args)})
     write_motion_prior(args.data, out / "weights")
     return out
