@@ -225,19 +225,6 @@ def count_parameters(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
 
 
-__all__ = [
-    "CATEGORIES",
-    "SEG_CLASSES",
-    "ParserConfig",
-    "ParserNet",
-    "ParserOutput",
-    "build",
-    "count_parameters",
-    "load_weights",
-    "save_weights",
-]
-
-
 def cpu_has_native_bf16() -> bool:
     """Whether this machine's CPU computes bfloat16 natively (the AVX512-BF16 or AMX
     instructions, read from ``/proc/cpuinfo``). Elsewhere torch emulates bfloat16 and a
@@ -248,3 +235,17 @@ def cpu_has_native_bf16() -> bool:
     except OSError:
         return False
     return any(f in flags for f in ("avx512_bf16", "amx_bf16"))
+
+
+__all__ = [
+    "CATEGORIES",
+    "SEG_CLASSES",
+    "ParserConfig",
+    "ParserNet",
+    "ParserOutput",
+    "build",
+    "count_parameters",
+    "cpu_has_native_bf16",
+    "load_weights",
+    "save_weights",
+]
