@@ -198,20 +198,22 @@ def link_pose(part: MovablePart, fraction: float) -> np.ndarray:
 
 def _interpolate(a: list, b: list, n: int) -> list:
     """``n`` candidate lists stepping from the poses ``a`` to ``b`` (matched by index,
-    the last of the shorter list repeated): straight moves, rotations slerped."""
-    from scipy.spatial.transform import Rotation, Slerp
+    the last of the shorter list repeated): straight moves, rotations slerped (the
+    shortest rotation from each pose of ``a`` to its pose of ``b``, in equal angles)."""
+    from scipy.spatial.transform import Rotation
 
+    m = max(len(a), len(b))
+    A = np.stack([a[min(i, len(a) - 1)] for i in range(m)])
+    B = np.stack([b[min(i, len(b) - 1)] for i in range(m)])
+    ra = Rotation.from_matrix(A[:, :3, :3])
+    turn = (ra.inv() * Rotation.from_matrix(B[:, :3, :3])).as_rotvec()
     out = []
     for k in range(1, n + 1):
         t = k / n
-        poses = []
-        for i in range(max(len(a), len(b))):
-            A, B = a[min(i, len(a) - 1)], b[min(i, len(b) - 1)]
-            T = np.eye(4)
-            T[:3, :3] = Slerp([0, 1], Rotation.from_matrix([A[:3, :3], B[:3, :3]]))(t).as_matrix()
-            T[:3, 3] = (1 - t) * A[:3, 3] + t * B[:3, 3]
-            poses.append(T)
-        out.append(poses)
+        T = np.tile(np.eye(4), (m, 1, 1))
+        T[:, :3, :3] = (ra * Rotation.from_rotvec(t * turn)).as_matrix()
+        T[:, :3, 3] = (1 - t) * A[:, :3, 3] + t * B[:, :3, 3]
+        out.append(list(T))
     return out
 
 
@@ -560,10 +562,16 @@ def _candidate_bases(
     bad |= dist[:, 0] > FIRST_GRASP_REACH
     # (the arm rises above its base: any height of the swept volume counts; ``high``:
     # only the swept volume above the base's bottom, under a robot standing high)
-    near = np.linalg.norm(swept[None, :, :2] - base[:, None, :2], axis=2) < BASE_CLEARANCE
+    # (computed on the horizontal grid once: the bases differ in height only along zs)
+    xy = np.stack([X[:, :, 0].ravel(), Y[:, :, 0].ravel()], axis=1)  # (nx * ny, 2)
+    gap2 = ((swept[None, :, :2] - xy[:, None]) ** 2).sum(2)  # (nx * ny, M)
+    near = gap2 < BASE_CLEARANCE**2
     if high:
-        near &= swept[None, :, 2] > base[:, None, 2] - 0.05
-    bad |= near.any(1)
+        under = swept[None, :, 2] > zs[:, None] - 0.05  # (nz, M)
+        hit = (near[:, None, :] & under[None]).any(2)  # (nx * ny, nz)
+    else:
+        hit = np.repeat(near.any(1)[:, None], len(zs), axis=1)
+    bad |= hit.ravel()
     # the ready gripper must not start inside the object
     yaw = np.arctan2(centre[1] - base[:, 1], centre[0] - base[:, 0])
     tcp = base + np.stack(
@@ -630,14 +638,20 @@ def best_push_plan(
     standoff: float = 0.12,
     q0: np.ndarray | None = None,
     depth: float = PUSH_DEPTH,
+    plans: dict | None = None,
 ) -> tuple[float, float, float, np.ndarray | None]:
     """The best pull-then-push plan (:func:`push_plan_poses`) for a robot at ``base``,
     ``yaw`` (object frame): (the fraction of its steps the arm follows, the switch
-    fraction, the tilt, the pre-grasp joints), over ``PUSH_SWITCHES`` x ``PUSH_TILTS``."""
+    fraction, the tilt, the pre-grasp joints), over ``PUSH_SWITCHES`` x ``PUSH_TILTS``.
+    ``plans``: a dict the plans' poses are kept in between calls for the same part,
+    ``depth`` and ``standoff`` (they do not depend on the robot's stand)."""
     best = (-1.0, PUSH_SWITCHES[0], PUSH_TILTS[0], None)
+    plans = {} if plans is None else plans
     for switch in PUSH_SWITCHES:
         for tilt in PUSH_TILTS:
-            steps, _ = push_plan_poses(part, switch, tilt, depth, standoff)
+            if (switch, tilt) not in plans:
+                plans[switch, tilt] = push_plan_poses(part, switch, tilt, depth, standoff)[0]
+            steps = plans[switch, tilt]
             frac, q = reach.follow(base, yaw, steps, standoff, q0=q0)
             if frac > best[0]:
                 best = (frac, switch, tilt, q)
@@ -696,12 +710,15 @@ def robot_base_for_part(
     if full:
         return picked
     # pull part of the way, then push: bases for that plan, ranked the same way
+    plans: dict = {}
     for switch in PUSH_SWITCHES:
         pts, dirs = push_plan_points(part, switch)
         # (the push stops short of the door's stop: a robot may stand beyond that)
         base, yaw, cost = _candidate_bases(part, bounds, pts, dirs, PUSH_END)
         for i in _shortlist(cost, (n_checked[0] // 2, n_checked[1] // 2)):
-            frac, _, _, q = best_push_plan(reach, part, base[i], float(yaw[i]), standoff)
+            frac, _, _, q = best_push_plan(
+                reach, part, base[i], float(yaw[i]), standoff, plans=plans
+            )
             score = frac - PUSH_MARGIN - 0.01 * cost[i]
             if score > best_score:
                 best_score, picked = score, (base[i], float(yaw[i]), q)
