@@ -147,3 +147,16 @@ def write_two_part_cabinet(
         )
         write_report(Report(asset=aid, status=status, checks=checks, repairs=repairs), folder)
     return folder
+
+
+def write_task_assets(root: Path) -> Path:
+    """Procedural objects built into ``root`` for the tasks: a desk with drawers, a
+    microwave with a side-hinged door, an oven with a bottom-hinged door and a fridge
+    with two side-hinged doors."""
+    from asset_pipeline.assets.build import build_asset
+    from generator.bundle import save_bundle
+    from generator.procedural import object_id, sample_object
+
+    for category, seed in (("desk", 0), ("microwave", 1), ("oven", 0), ("refrigerator", 0)):
+        build_asset(save_bundle(sample_object(category, seed), root / object_id(category, seed)))
+    return root

@@ -243,6 +243,7 @@ def _touch_and_pull_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptio
         local = np.asarray(link.entity_pose.inv().to_transformation_matrix()) @ np.append(
             point, 1.0
         )
+        axis = np.asarray(next(p for p in asset.movable_parts() if p.joint_name == js.name).axis)
         best = 0.0
         for _ in range(round(tol.pull_time / dt)):
             T = np.asarray(link.entity_pose.to_transformation_matrix())
@@ -251,9 +252,6 @@ def _touch_and_pull_checks(asset: BuiltAsset, tol: Tolerances, options: SimOptio
             qi = float(art.get_qpos()[i]) - js.lower
             d = direction
             if js.type != "prismatic":
-                axis = np.asarray(
-                    next(p for p in asset.movable_parts() if p.joint_name == js.name).axis
-                )
                 R = sapien.Pose(q=_axis_angle_quat(axis, qi)).to_transformation_matrix()[:3, :3]
                 d = np.asarray(R) @ direction
             link.add_force_at_point(tol.pull_force * d, p_world)
