@@ -60,3 +60,32 @@ def test_no_render_device_returns_none_and_validation_runs(asset, monkeypatch, c
     report = validate_asset(asset)
     assert report.ok and report.preview is None
     assert json.loads((asset / "report.json").read_text())["preview"] is None
+
+
+@pytest.mark.render
+def test_a_process_that_drew_a_preview_can_still_make_the_tasks_cameras(asset):
+    """SAPIEN renders on one device per process. ManiSkill's CPU render backend (the tasks'
+    cameras and videos) asks for ``sapien.Device("cpu")``; a preview drawn first on the
+    default device used to make it fail ("only supports single-GPU rendering"). In a
+    fresh process: the preview, then the render system ManiSkill makes, then a second
+    preview, which must draw the same picture."""
+    import subprocess
+    import sys
+
+    if not render_device_available():
+        pytest.skip("no Vulkan render device (install Mesa lavapipe >= 24.3, see FIELD-NOTES)")
+    code = f"""
+import numpy as np, sapien, torch
+from PIL import Image
+from asset_pipeline.validate.preview import render_preview
+from mani_skill.envs.utils.system.backend import parse_sim_and_render_backend
+first = np.asarray(Image.open(render_preview({str(asset)!r}, size=128)))
+device = parse_sim_and_render_backend("physx_cpu", "cpu").render_device
+if not torch.cuda.is_available():
+    assert sapien.render.RenderSystem(device).device.name == "cpu"
+again = np.asarray(Image.open(render_preview({str(asset)!r}, size=128)))
+assert first.std() > 10 and np.array_equal(first, again)
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-2000:]

@@ -47,25 +47,26 @@ def configure_vulkan() -> None:
 def make_scene(timestep: float = 1 / 240, render: bool | None = None) -> sapien.Scene:
     """A SAPIEN scene with a CPU PhysX system and a render system.
 
-    ``render=True``: a render system on the default (Vulkan) device; raises
-    RuntimeError when none exists. ``render=False``: a render system on the CPU
-    device (visuals load, nothing draws; fastest, for physics-only checks).
-    ``render=None``: the Vulkan device when one works, else the CPU device.
-    SAPIEN allows one rendering device per process: once a Vulkan renderer exists,
-    a CPU-device render system cannot be made, so ``render=False`` then shares the
-    Vulkan one (still nothing is drawn unless asked). ``timestep`` is in seconds.
+    ``render=True``: a render system that draws (``generator.data.render.new_render_system``:
+    without CUDA SAPIEN's CPU device, lavapipe, as ManiSkill's CPU render backend uses);
+    raises RuntimeError when none exists. ``render=False``: a render system on the CPU
+    device for physics-only checks (visuals load; nothing is drawn unless asked).
+    ``render=None``: a drawing one when one works, else the CPU device. SAPIEN allows
+    one rendering device per process: once a renderer on another device exists, a
+    CPU-device render system cannot be made, so ``render=False`` then shares that one.
+    ``timestep`` is in seconds.
     """
     configure_vulkan()
     import sapien
 
-    from generator.data.render import use_sapien_camera_defaults
+    from generator.data.render import new_render_system, use_sapien_camera_defaults
 
     use_sapien_camera_defaults()
     physx = sapien.physx.PhysxCpuSystem()
     render_system = None
     if render is not False:
         try:
-            render_system = sapien.render.RenderSystem()
+            render_system = new_render_system()
         except Exception as e:  # noqa: BLE001 - SAPIEN raises RuntimeError without a device
             if render:
                 raise RuntimeError(f"no Vulkan render device for SAPIEN: {e}") from e

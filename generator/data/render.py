@@ -197,12 +197,33 @@ def use_sapien_camera_defaults() -> None:
         sapien.render.set_picture_format(picture, "r32g32b32a32sfloat")
 
 
+def new_render_system() -> sapien.render.RenderSystem:
+    """A SAPIEN render system on the device ManiSkill's CPU render backend uses.
+
+    SAPIEN renders on one device per process, fixed by the first render system made.
+    ManiSkill's ``render_backend="cpu"`` (the tasks' cameras and videos) asks for
+    ``sapien.Device("cpu")`` (lavapipe), which SAPIEN refuses once a render system lives on
+    the default device (the same lavapipe, named by its PCI address). Without CUDA the CPU
+    device is therefore asked for first, so a process that rendered a preview or a photo
+    can still make the tasks' cameras; with CUDA, or without that device, the default.
+    Raises RuntimeError when there is no render device at all.
+    """
+    import torch
+
+    if not torch.cuda.is_available():
+        try:
+            return sapien.render.RenderSystem(sapien.Device("cpu"))
+        except RuntimeError:  # no lavapipe, or a renderer on another device already exists
+            pass
+    return sapien.render.RenderSystem()
+
+
 def render_system() -> sapien.render.RenderSystem:
     use_sapien_camera_defaults()
     try:
         if not _KEEPALIVE:
-            _KEEPALIVE.append(sapien.render.RenderSystem())
-        return sapien.render.RenderSystem()
+            _KEEPALIVE.append(new_render_system())
+        return new_render_system()
     except Exception as e:  # SAPIEN raises RuntimeError with a device message
         raise RenderUnavailableError(
             f"SAPIEN found no render device ({e}); on CPU install Mesa lavapipe "
