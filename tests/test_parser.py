@@ -422,3 +422,43 @@ def test_an_object_the_parser_reads_as_other_has_no_moving_parts(
     parsed = parser.parse(np.zeros((40, 40, 3), np.uint8), category=given)
     assert len(np.unique(parsed.mask)) == parts + 1  # background, base[, the part]
     assert len(parsed.parts) == parts - 1 and (parsed.mask[5:35, 5:35] > 0).all()
+
+
+@pytest.mark.parametrize(
+    ("movable_prob", "other_prob", "fallback", "parts"),
+    [
+        (0.35, 0.05, 0.25, 1),  # unsure of the drawer front: it becomes the part
+        (0.2, 0.05, 0.25, 0),  # below the fallback's share: no part
+        (0.35, 0.05, 0.0, 0),  # the fallback off
+        (0.35, 0.9, 0.25, 0),  # read as "other": no moving part wanted
+    ],
+)
+def test_an_object_of_the_seven_without_a_found_part_gets_its_likeliest_one(
+    monkeypatch: pytest.MonkeyPatch,
+    movable_prob: float,
+    other_prob: float,
+    fallback: float,
+    parts: int,
+) -> None:
+    """Every object of the seven categories has a moving part: where no pixel is more
+    likely movable than base, the region whose movable share passes ``fallback_movable``
+    is the part, with the motion its pixels vote for; the silhouette is unchanged."""
+    from generator.parser.inference import PixelMaps
+
+    seg = np.zeros((4, 40, 40), np.float32)
+    seg[0] = 1.0
+    seg[:, 5:35, 5:35] = np.array([0.0, 1.0, 0.0, 0.0])[:, None, None]  # the object: base
+    seg[1:3, 10:20, 10:30] = np.array([1 - movable_prob, movable_prob])[:, None, None]
+    motion = np.full((len(MOTIONS), 40, 40), 0.05, np.float32)
+    motion[MOTIONS.index("drawer")] = 0.75
+    category = np.full(len(CATEGORIES), (1 - other_prob) / (len(CATEGORIES) - 1))
+    category[CATEGORIES.index("other")] = other_prob
+    parser = PhotoParser(ParserNet(TINY), fallback_movable=fallback)
+    maps = PixelMaps(seg, motion, category)
+    monkeypatch.setattr(parser, "pixel_maps", lambda image, alpha=None: maps)
+    parsed = parser.parse(np.zeros((40, 40, 3), np.uint8))
+    assert len(parsed.parts) == parts
+    assert (parsed.mask > 0).sum() == 30 * 30 and (parsed.mask[5:35, 5:35] > 0).all()
+    if parts:
+        assert (parsed.mask == 2).sum() == 10 * 20 and (parsed.mask[10:20, 10:30] == 2).all()
+        assert parsed.parts[0].motion == "drawer"

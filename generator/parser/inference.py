@@ -116,6 +116,7 @@ class PhotoParser:
         reach: float = 0.04,
         edge: float = 0.35,
         grouping: BoxGrouping | None = None,
+        fallback_movable: float = 0.25,
         bf16: bool | None = None,
         version: str = "parser-untrained",
         motion_counts: dict[str, dict[str, int]] | None = None,
@@ -131,6 +132,10 @@ class PhotoParser:
         # how movable pixels become parts (:func:`instances`)
         self.min_part, self.reach, self.edge = min_part, reach, edge
         self.grouping = grouping or BoxGrouping()
+        # no part found on an object of the seven categories (each has a moving part):
+        # the pixels whose movable share of the object's probability is at least this
+        # make the parts instead (0: such an object stays without parts)
+        self.fallback_movable = fallback_movable
         # bf16 autocast on a CPU that computes it natively (None: find out), else float32
         if bf16 is None:
             bf16 = cpu_has_native_bf16()
@@ -290,7 +295,30 @@ class PhotoParser:
             # the training data's "other" furniture has no moving parts (a category the
             # user gives is left alone: their "other" may be a chest with a lid)
             mask = np.where(mask >= 2, 1, mask).astype(mask.dtype)
+        elif (
+            mask.max() < 2 and self.fallback_movable > 0 and (category or CATEGORIES[c]) != "other"
+        ):
+            mask = self._fallback_parts(maps, mask)
         return self._photo(maps, mask, t0, category), maps
+
+    def _fallback_parts(self, maps: PixelMaps, mask: np.ndarray) -> np.ndarray:
+        """Parts for an object of the seven categories where none was found (a drawer
+        front the network is unsure of, on a photo of a desk): within the object's
+        silhouette, the pixels whose movable probability is at least ``fallback_movable``
+        of their base plus movable probability, grouped as :func:`instances` groups."""
+        seg = maps.seg.copy()
+        t = self.fallback_movable
+        # movable wins the argmax exactly where movable / (base + movable) > t
+        seg[2] = seg[2] * (1.0 - t) / t
+        return instances(
+            seg,
+            alpha=mask > 0,
+            min_part=self.min_part,
+            reach=self.reach,
+            edge=self.edge,
+            box=maps.box,
+            grouping=self.grouping,
+        )
 
     def label(
         self, image: np.ndarray, mask: np.ndarray, category: str | None = None
