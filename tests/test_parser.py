@@ -462,3 +462,5 @@ def test_an_object_of_the_seven_without_a_found_part_gets_its_likeliest_one(
     if parts:
         assert (parsed.mask == 2).sum() == 10 * 20 and (parsed.mask[10:20, 10:30] == 2).all()
         assert parsed.parts[0].motion == "drawer"
+    # a person is asked to check the likeliest region (the item's warning in convert)
+    assert bool(parsed.notes) is bool(parts)

@@ -31,6 +31,7 @@ class Reading:
     mask: np.ndarray
     parts: list[Part]
     seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -136,6 +137,22 @@ def test_a_parser_that_finds_nothing_leaves_the_item_without_a_mask(tmp_path):
     done, sources = complete_input(_load(tmp_path), Blind())
     assert done.mask is None and any("found no object" in w for w in done.warnings)
     assert done.hints["category"] == "other" and sources.mask.source == "none"
+
+
+def test_what_the_parser_asks_a_person_to_check_is_the_items_warning(tmp_path):
+    photo = _photo(tmp_path)
+
+    class Unsure(FakeParser):
+        def parse(self, image, alpha=None, category=None):
+            reading = super().parse(image, alpha, category)
+            reading.notes.append("the parser was sure of no moving part: check the mask")
+            return reading
+
+    done, _ = complete_input(_load(tmp_path), Unsure())
+    assert done.mask is not None
+    assert done.warnings == [f"{photo}: the parser was sure of no moving part: check the mask"]
+    done, _ = complete_input(_load(tmp_path), FakeParser())  # a sure reading: no warning
+    assert done.warnings == []
 
 
 def test_convert_parses_a_bare_photo_and_records_where_each_field_came_from(tmp_path, monkeypatch):

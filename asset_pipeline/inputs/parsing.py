@@ -138,6 +138,9 @@ def complete_input(
             log.warning("%s", warnings[-1])
         else:
             mask = np.ascontiguousarray(reading.mask, dtype=np.uint8)
+            for note in getattr(reading, "notes", []):
+                warnings.append(f"{where}: {note}")
+                log.warning("%s", warnings[-1])
             how = "sam2+parser" if segmenter is not None else "parser"
             sources.mask = FieldSource("parser", None, f"{version} ({how})" if version else how)
     else:

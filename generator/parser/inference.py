@@ -72,6 +72,7 @@ class ParsedPhoto:
     parts: list[ParsedPart]  # one per id >= 2, by id
     seconds: float
     category_probs: dict[str, float] = field(default_factory=dict, repr=False)
+    notes: list[str] = field(default_factory=list)  # what a person should check
 
 
 @dataclass
@@ -299,6 +300,13 @@ class PhotoParser:
             mask.max() < 2 and self.fallback_movable > 0 and (category or CATEGORIES[c]) != "other"
         ):
             mask = self._fallback_parts(maps, mask)
+            if mask.max() >= 2:
+                photo = self._photo(maps, mask, t0, category)
+                photo.notes.append(
+                    "the parser was sure of no moving part; its parts are the likeliest "
+                    f"regions (movable share >= {self.fallback_movable:g}): check the mask"
+                )
+                return photo, maps
         return self._photo(maps, mask, t0, category), maps
 
     def _fallback_parts(self, maps: PixelMaps, mask: np.ndarray) -> np.ndarray:
