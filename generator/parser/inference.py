@@ -134,7 +134,7 @@ class PhotoParser:
         self.min_part, self.reach, self.edge = min_part, reach, edge
         self.grouping = grouping or BoxGrouping()
         # no part found on an object of the seven categories (each has a moving part):
-        # the pixels whose movable share of the object's probability is at least this
+        # the pixels whose movable share of the base plus movable probability is above this
         # make the parts instead (0: such an object stays without parts)
         self.fallback_movable = fallback_movable
         # bf16 autocast on a CPU that computes it natively (None: find out), else float32
@@ -304,7 +304,7 @@ class PhotoParser:
                 photo = self._photo(maps, mask, t0, category)
                 photo.notes.append(
                     "the parser was sure of no moving part; its parts are the likeliest "
-                    f"regions (movable share >= {self.fallback_movable:g}): check the mask"
+                    f"regions (movable share > {self.fallback_movable:g}): check the mask"
                 )
                 return photo, maps
         return self._photo(maps, mask, t0, category), maps
@@ -312,7 +312,7 @@ class PhotoParser:
     def _fallback_parts(self, maps: PixelMaps, mask: np.ndarray) -> np.ndarray:
         """Parts for an object of the seven categories where none was found (a drawer
         front the network is unsure of, on a photo of a desk): within the object's
-        silhouette, the pixels whose movable probability is at least ``fallback_movable``
+        silhouette, the pixels whose movable probability is more than ``fallback_movable``
         of their base plus movable probability, grouped as :func:`instances` groups."""
         seg = maps.seg.copy()
         t = self.fallback_movable
