@@ -93,11 +93,21 @@ def test_gallery_from_catalog_with_inputs(tmp_path: Path) -> None:
     with Catalog(out) as cat:
         for name in ("cab_a", "cab_b", "mw"):
             register_asset_dir(
-                cat, out / name, source_image=str(photos / f"{name}.png"), generator="pact"
+                cat,
+                out / name,
+                source_image=str(photos / f"{name}.png"),
+                generator="pact",
+                warnings=("p.png: the parser was sure of no moving part <check>",)
+                if name == "cab_b"
+                else (),
             )
         cat.record_failure("lost_one", "generator crashed <OOM>")
     page = write_gallery(out).read_text()
     assert "from the catalog" in page and page.count("class='card'") == 4
+    # the conversion's warnings on the card they belong to, escaped
+    card_b = page[page.index("id='cab_b'") : page.index("</section>", page.index("id='cab_b'"))]
+    assert "warning: p.png: the parser was sure of no moving part &lt;check&gt;" in card_b
+    assert page.count("warning: ") == 1
     assert 'src="gallery/cab_a/input.png"' in page and 'src="gallery/cab_a/mask.png"' in page
     assert "generator crashed &lt;OOM&gt;" in page  # escaped
     mask = np.asarray(Image.open(out / "gallery" / "cab_a" / "mask.png"))

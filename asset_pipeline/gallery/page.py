@@ -379,6 +379,7 @@ table{border-collapse:collapse;margin:6px 0 10px;font-size:13px}
 th,td{border-bottom:1px solid #e4e4e8;padding:3px 10px;text-align:left}
 th{background:#f0f0f4} td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.fail td{color:#b0281a} .reason{color:#b0281a;font-weight:600}
+.warnings{color:#8a5a00;margin:4px 0;padding-left:18px}
 .cols{display:flex;gap:28px;flex-wrap:wrap}
 .viewer{flex:0 0 460px;max-width:100%;border:1px solid #d8dce3;border-radius:6px;overflow:hidden;
  background:#eef1f5;display:flex;flex-direction:column}
@@ -679,6 +680,12 @@ def _card(e: _Entry, imgs: dict[str, str | None], scene: str | None = None) -> s
     ]
     if r.failure_reason:
         parts.append(f"<p class='reason'>failure: {_e(r.failure_reason)}</p>")
+    if r.warnings:  # what the conversion asks a person to check (as `pact ls` lists them)
+        parts.append(
+            "<ul class='warnings'>"
+            + "".join(f"<li>warning: {_e(w)}</li>" for w in r.warnings)
+            + "</ul>"
+        )
     if e.error:
         parts.append(f"<p class='reason'>unreadable: {_e(e.error)}</p>")
     has_photo = imgs["input"] is not None
