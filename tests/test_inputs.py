@@ -26,12 +26,15 @@ from asset_pipeline.inputs.folder import (
 from asset_pipeline.inputs.hints import check_hints
 from asset_pipeline.inputs.mask import (
     MASK_EDGE_REFUSE,
+    MASK_FLOOR_IOU,
     MASK_MIN_IOU,
+    MASK_OUTLINE_COVERED,
     check_mask_edges,
     check_mask_matches_photo,
     mask_edge_support,
+    mask_outline_coverage,
 )
-from asset_pipeline.inputs.photo import MIN_PHOTO_SIZE
+from asset_pipeline.inputs.photo import MIN_PHOTO_SIZE, estimate_silhouette
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "images"
 
@@ -421,6 +424,46 @@ def test_matching_mask_on_plain_background_accepted(tmp_path: Path) -> None:
     m[40:60, 25:45] = 2  # the panel is the movable part: its outline is an edge
     _mask(tmp_path / "p.mask.png", m)
     assert load_input(discover_inputs(tmp_path)[0]).part_count == 2
+
+
+def _table_with_shadow() -> tuple[np.ndarray, np.ndarray]:
+    """(photo, its own mask): a thin-legged table on a white floor with its grey cast
+    shadow under it. The estimated silhouette takes in the shadow, so the table's own
+    mask overlaps it with an IoU below MASK_MIN_IOU, as PartNet's desks do."""
+    rng = np.random.default_rng(3)
+    img = np.full((128, 128, 3), 245, np.uint8)
+    img[96:118, 30:122] = 200  # the shadow on the floor, cast to the right
+    wood = rng.integers(60, 90, (128, 128, 1)) + np.array([40, 10, 0])
+    table = np.zeros((128, 128), np.uint8)
+    table[30:40, 20:108] = 1  # the top
+    table[40:110, 22:26] = 1  # the legs
+    table[40:110, 102:106] = 1
+    img[table > 0] = wood[table > 0]
+    return img, table
+
+
+def test_own_mask_of_a_table_with_a_cast_shadow_is_accepted(tmp_path: Path) -> None:
+    img, own = _table_with_shadow()
+    silhouette = estimate_silhouette(img)
+    iou = np.count_nonzero((own > 0) & silhouette) / np.count_nonzero((own > 0) | silhouette)
+    assert MASK_FLOOR_IOU <= iou < MASK_MIN_IOU  # the shadow is in the silhouette
+    assert mask_outline_coverage(own, img) >= MASK_OUTLINE_COVERED
+    Image.fromarray(img).save(tmp_path / "t.png")
+    _mask(tmp_path / "t.mask.png", own)
+    assert load_input(discover_inputs(tmp_path)[0]).part_count == 1
+
+
+def test_mask_inside_the_silhouette_but_off_its_edges_is_refused(tmp_path: Path) -> None:
+    """Another photo's mask that falls inside this photo's silhouette (the lower part of
+    the shadow): its top edge runs over flat grey, so its outline is not the photo's."""
+    img, _ = _table_with_shadow()
+    other = np.zeros((128, 128), np.uint8)
+    other[104:118, 30:122] = 1
+    assert mask_outline_coverage(other, img) < MASK_OUTLINE_COVERED
+    Image.fromarray(img).save(tmp_path / "t.png")
+    _mask(tmp_path / "t.mask.png", other)
+    err = _expect(tmp_path, "the mask does not match the photo", "t.mask.png")
+    assert "is it the mask of another photo?" in str(err)
 
 
 def test_mismatch_not_judged_without_a_silhouette(tmp_path: Path) -> None:
