@@ -220,6 +220,28 @@ def test_soft_edges_specks_and_holes_are_cleaned_with_a_warning(tmp_path: Path) 
     assert "specks" in warning and "small holes" in warning
 
 
+def test_a_movable_part_seen_edge_on_is_kept_when_it_is_the_only_one(tmp_path: Path) -> None:
+    """A top-loader's lid seen from the front is a 3 px strip along the top: thin as the
+    in-between values of an edge, which go when other movable parts remain, but the
+    mask's only movable part, so it stays (with a warning) and the item keeps its part."""
+    box = (slice(20, 80), slice(10, 60))
+    img = _on_plain_background(box=box)
+    Image.fromarray(img).save(tmp_path / "w.png")
+    ids = _box_mask(128, 96, box)
+    ids[20:23, 14:56] = 2  # the lid's front edge
+    _mask(tmp_path / "w.mask.png", ids)
+    loaded = load_input(discover_inputs(tmp_path)[0])
+    assert loaded.part_count == 2 and (loaded.mask[20:23, 14:56] == 2).all()
+    (warning,) = [w for w in loaded.warnings if "sliver" in w]
+    assert warning.startswith(f"{tmp_path / 'w.mask.png'}: part 2 is a sliver of 126 px")
+    ids[40:70, 20:50] = 3  # with a door beside it, the strip is an edge's in-between values
+    _mask(tmp_path / "w.mask.png", ids)
+    loaded = load_input(discover_inputs(tmp_path)[0])
+    assert loaded.part_count == 2 and (loaded.mask[40:70, 20:50] == 2).all()  # 3 -> 2
+    assert not (loaded.mask[20:23, 14:56] == 2).any()  # the strip went to its neighbours
+    assert not any("sliver" in w for w in loaded.warnings)
+
+
 @pytest.mark.parametrize(
     "picture, match",
     [
