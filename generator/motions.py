@@ -73,8 +73,9 @@ def motion_of_joint(joint: Joint, lo: np.ndarray, hi: np.ndarray) -> str:
         return "door_left" if o[1] < centre[1] else "door_right"
     if k == 1:  # horizontal hinge along the front
         extent = hi - lo
-        if extent[2] <= min(extent[0], extent[1]) and o[0] < centre[0]:
-            return "lid"  # a flat part hinged at its back edge
+        flat = extent[2] <= min(extent[0], extent[1])
+        if o[0] < centre[0] and (flat or o[2] > centre[2]):
+            return "lid"  # hinged at its back edge: a flat part's, or the top one
         return "flap_bottom" if o[2] < centre[2] else "flap_top"
     # a hinge along the front's normal (front to back) is horizontal too: a lid hinged on
     # its side edge (a top-loading washer's) or, rarely, a part turning in the front's

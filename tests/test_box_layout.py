@@ -359,3 +359,35 @@ def test_the_layout_keeps_a_given_motion(motion):
         motion_of(Part(laid.name, laid.semantic, laid.primitives[0].to_mesh(), laid.joint))
         == motion
     )
+
+
+def test_a_lid_drawn_as_a_strip_along_the_front_stays_a_lid_and_validates(tmp_path):
+    """A top-loader's lid that the photo shows only as a strip along the top of the front
+    is drawn deeper in height than in depth. Thinnest across the hinge, its face would be
+    the front and it a flap hinged at its top edge, falling open under its own weight
+    (and, with friction raised to hold it, too stiff to pull open). As a lid it hinges
+    on the back edge of its top face, opens upward, and passes SAPIEN's checks."""
+    from asset_pipeline.assets.build import build_asset
+    from asset_pipeline.validate import validate_asset
+    from generator.motions import motion_of
+    from generator.pact.model.articulation import joint_of_motion
+
+    base = Part("base", "base", _box((-0.3, -0.3, 0.0), (0.3, 0.3, 0.85)))
+    lo, hi = np.array([0.25, -0.2, 0.76]), np.array([0.31, 0.2, 0.85])  # 6 cm deep, 9 tall
+    pj = joint_of_motion("lid", lo, hi)
+    lid = Part("lid_1", "lid", _box(lo, hi), Joint(pj.type, pj.origin, pj.axis, 0.0, pj.upper))
+    obj = ArticulatedObject([base, lid], category="washing_machine", scale=1.0)
+    out = fit_box_layout(obj)
+    laid = next(p for p in out.parts if p.name == "lid_1")
+    (blo, bhi) = _bounds(laid)
+    assert laid.joint.origin[2] == pytest.approx(bhi[2])  # on the top face ...
+    assert laid.joint.origin[0] == pytest.approx(blo[0])  # ... at its back edge
+    front_top = np.array([bhi[0], 0.0, bhi[2]])
+    assert trimesh.transform_points([front_top], laid.joint.transform(0.5))[0][2] > bhi[2] + 0.02
+    assert (
+        motion_of(Part(laid.name, laid.semantic, laid.primitives[0].to_mesh(), laid.joint)) == "lid"
+    )
+    d = save_bundle(out, tmp_path / "top_loader")
+    build_asset(d, height=0.85)
+    report = validate_asset(d, preview=False, repair=False)
+    assert report.ok, report.reasons
