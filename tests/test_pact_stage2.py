@@ -545,6 +545,23 @@ def test_door_panel_keeps_the_front_slab_closed_and_coloured():
     assert door_panel(part, 0.6) is part  # nothing to cut: the part as it is
 
 
+def test_lid_panel_keeps_the_top_slab_closed_and_coloured():
+    """The lid made of a part drawn 0.6 tall is its top 0.05: a closed slab from z = 0.25
+    to 0.3 over the part's whole depth and width (a door's cut would keep the front
+    instead, a strip along the top of the front), coloured as the part."""
+    import trimesh
+
+    from generator.pact.inference.generate import lid_panel
+
+    part = trimesh.creation.box((0.5, 0.3, 0.6))  # z from -0.3 to 0.3
+    part.visual.vertex_colors = np.tile([30, 200, 30, 255], (len(part.vertices), 1))
+    slab = lid_panel(part, 0.05)
+    assert np.allclose(slab.bounds, [[-0.25, -0.15, 0.25], [0.25, 0.15, 0.3]])
+    assert slab.is_watertight and np.isclose(slab.volume, 0.5 * 0.3 * 0.05)
+    assert (np.asarray(slab.visual.vertex_colors)[:, :3] == (30, 200, 30)).all()
+    assert lid_panel(part, 0.7) is part  # nothing to cut: the part as it is
+
+
 def test_shape_prior_hinges_off_centre_doors_at_their_outer_edge():
     """The two doors of a pair (each a quarter of the width off the middle), whatever side
     the head hinged them at, hinge at their outer edges; a door in the middle keeps the

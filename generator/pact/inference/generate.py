@@ -50,6 +50,7 @@ from generator.pact.inference.sweep_clearance import keep_sweeps_apart
 from generator.pact.model.articulation import (
     DOOR_HINGE,
     DOOR_PANEL_DEPTH,
+    LID_PANEL_HEIGHT,
     ArticulationHead,
     PartJoint,
     aggregate_last,
@@ -419,7 +420,12 @@ class PActGenerator:
                 drawn = (pj.type, pj.semantic) if pj is not None else ("prismatic", "drawer")
                 pj = joint_of_motion(motions[k], lo, hi, pj)
                 if pj.type == "revolute" and (drawn[0] == "prismatic" or drawn[1] == "lid"):
-                    meshes[k] = door_panel(meshes[k], DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0]))
+                    if motions[k] == "lid":  # a lid is the top of what was drawn
+                        height = LID_PANEL_HEIGHT * (obj_hi[2] - obj_lo[2])
+                        meshes[k] = lid_panel(meshes[k], height)
+                    else:
+                        depth = DOOR_PANEL_DEPTH * (obj_hi[0] - obj_lo[0])
+                        meshes[k] = door_panel(meshes[k], depth)
                 read[k] = (pj, lo, hi)
                 continue
             if pj is None:
@@ -700,6 +706,17 @@ def door_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
     if x0 <= float(mesh.bounds[0, 0]):
         return mesh
     slab = slice_closed(mesh, np.array([1.0, 0.0, 0.0]), np.array([x0, 0.0, 0.0]))
+    return mesh if slab is None else slab
+
+
+def lid_panel(mesh: trimesh.Trimesh, thickness: float) -> trimesh.Trimesh:
+    """The top slab of a part's mesh, ``thickness`` deep along z, closed at its bottom and
+    coloured as the mesh: the lid a part drawn as a drawer or a lid becomes when its
+    given motion is ``lid``. The mesh itself when the cut leaves nothing."""
+    z0 = float(mesh.bounds[1, 2]) - thickness
+    if z0 <= float(mesh.bounds[0, 2]):
+        return mesh
+    slab = slice_closed(mesh, np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, z0]))
     return mesh if slab is None else slab
 
 

@@ -326,6 +326,11 @@ TALL_DOOR_HEIGHT = (0.4, 0.8)
 #: object's depth (the real dev split's doors: 0.11 median without the handle the box
 #: layout adds, 0.135 with it).
 DOOR_PANEL_DEPTH = 0.1
+#: The thickness of a lid (a given motion ``lid``) made from a part drawn as a drawer or
+#: a lid, as a share of the object's height: its top slab, as thick as a washer's lid
+#: or a chest's (4-5 cm on a 0.85-0.9 m object). Cut to a door's front slab instead, a
+#: lid became a strip along the top of the front, hinged on that strip's back edge.
+LID_PANEL_HEIGHT = 0.05
 #: A front 'drawer', or a 'side-hinged door' ``DOOR_MAX_ASPECT`` as wide as tall, at least
 #: ``OVEN_DOOR_WIDTH`` of the object's width wide and ``OVEN_DOOR_HEIGHT`` of its height
 #: tall, on an object at least ``OVEN_MIN_HEIGHT`` as tall as wide, is a door hinged at its
