@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import time
 from pathlib import Path
 
 import numpy as np
@@ -548,17 +547,27 @@ def test_a_mask_whose_outline_and_parts_miss_the_photos_edges_is_refused(tmp_pat
     assert "outline support" in str(err) and "part-boundary support" in str(err)
 
 
-def test_mask_check_is_cheap_at_1024px() -> None:
+def test_mask_check_compares_on_a_small_grid_at_1024px(monkeypatch) -> None:
+    """The check costs a few ms at any photo size because the silhouette is estimated,
+    and compared with the mask, on a grid of at most SILHOUETTE_GRID px a side (the
+    load stage's seconds in bench/convert.py measure it)."""
+    import asset_pipeline.inputs.mask as mask_module
+
+    grids = []
+
+    def estimate(image, stride=1):
+        out = estimate_silhouette(image, stride)
+        grids.append(out.shape)
+        return out
+
+    monkeypatch.setattr(mask_module, "estimate_silhouette", estimate)
     box = (slice(200, 900), slice(150, 700))
     img = _on_plain_background(1024, 1024, box)
-    m = _box_mask(1024, 1024, box)
-    best = float("inf")
-    for _ in range(3):
-        t = time.perf_counter()
-        check_mask_matches_photo(m, img, None, "m.mask.png")
-        best = min(best, time.perf_counter() - t)
-    assert best < 0.05
-    assert MASK_MIN_IOU == 0.5
+    check_mask_matches_photo(_box_mask(1024, 1024, box), img, None, "m.mask.png")
+    assert grids == [(256, 256)]
+    shifted = _box_mask(1024, 1024, (slice(200, 900), slice(450, 1000)))
+    with pytest.raises(InputError, match="the mask does not match the photo"):
+        check_mask_matches_photo(shifted, img, None, "m.mask.png")  # the grid still tells
 
 
 # --------------------------------------------------------------------------- 5. formats
