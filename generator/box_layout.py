@@ -119,9 +119,11 @@ MAX_SLIDE = 0.9
 #: along the top of the front: it hinges on the back edge of its top and opens upward.
 #: A taller one is drawn as a front panel and hinges as one, at its top edge, where its
 #: handle has the lever to lift it. On the 12 lid photos of the parser's procedural val
-#: renders (3 objects, converted with their masks alone) the strips are 0.01-0.17 of
-#: the height and the panels 0.26-0.39; 10 of them validate, against 5 with every lid
-#: hinged as its thinnest side says.
+#: renders (3 objects, converted with their masks alone), when a given lid was still cut
+#: to a door's front slab, the strips were 0.01-0.17 of the height and the panels
+#: 0.26-0.39, and 10 of them validated against 5 with every lid hinged as its thinnest
+#: side says. A given lid is now the top of what was drawn (``generate.lid_panel``), so
+#: this rule is for the strips PAct itself draws.
 LID_STRIP = 0.2
 
 
