@@ -439,16 +439,27 @@ def _edge_image(mask: np.ndarray, image: np.ndarray) -> tuple[np.ndarray, np.nda
     return mask[::stride, ::stride], ndimage.maximum_filter(grad, size=5)
 
 
+def _outline(m: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels of a part-id grid next to (right of or below) a pixel on
+    the other side of the object's outline (foreground ids > 0 against background 0)."""
+    fg = m > 0
+    outline = np.zeros(m.shape, bool)
+    for dy, dx in ((0, 1), (1, 0)):
+        outline[: m.shape[0] - dy, : m.shape[1] - dx] |= (
+            fg[: m.shape[0] - dy, : m.shape[1] - dx] != fg[dy:, dx:]
+        )
+    return outline
+
+
 def _edge_supports(mask: np.ndarray, image: np.ndarray) -> tuple[float | None, float | None]:
     """(part-boundary support, outline support) of :func:`mask_edge_support` and
     :func:`mask_outline_support`, from one gradient image."""
     m, grad = _edge_image(mask, image)
     inner = np.zeros(m.shape, bool)
-    outline = np.zeros(m.shape, bool)
     for dy, dx in ((0, 1), (1, 0)):
         a, b = m[: m.shape[0] - dy, : m.shape[1] - dx], m[dy:, dx:]
         inner[: m.shape[0] - dy, : m.shape[1] - dx] |= (a != b) & (a > 0) & (b > 0)
-        outline[: m.shape[0] - dy, : m.shape[1] - dx] |= (a > 0) != (b > 0)
+    outline = _outline(m)
     inside = ndimage.binary_erosion(m > 0, iterations=3)
     if not inside.any():
         return None, None
@@ -489,12 +500,8 @@ def mask_outline_coverage(mask: np.ndarray, image: np.ndarray) -> float | None:
     :func:`mask_outline_support`, a few strong edges do not make up for long stretches
     of the outline over flat paint."""
     m, grad = _edge_image(mask, image)
-    fg = m > 0
-    outline = np.zeros(m.shape, bool)
-    for dy, dx in ((0, 1), (1, 0)):
-        a, b = fg[: m.shape[0] - dy, : m.shape[1] - dx], fg[dy:, dx:]
-        outline[: m.shape[0] - dy, : m.shape[1] - dx] |= a != b
-    inside = ndimage.binary_erosion(fg, iterations=3)
+    outline = _outline(m)
+    inside = ndimage.binary_erosion(m > 0, iterations=3)
     if not inside.any() or not outline.any():
         return None
     mean_inside = float(grad[inside].mean())
