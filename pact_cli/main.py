@@ -974,6 +974,12 @@ def train(
         "--randomize-physics",
         help="Scale each training object's part masses, damping and friction at every load.",
     ),
+    demo_episodes: int = typer.Option(
+        0,
+        help="Opening tasks: first clone the scripted teacher's successful episodes on the "
+        "training assets (this many episodes; 0: PPO from scratch).",
+    ),
+    learning_rate: float = typer.Option(3e-4, help="PPO's initial learning rate."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
@@ -1004,6 +1010,8 @@ def train(
         resume=resume,
         lr_anneal_steps=lr_anneal_steps or None,
         randomize_physics=randomize_physics,
+        demo_episodes=demo_episodes,
+        learning_rate=learning_rate,
         progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,

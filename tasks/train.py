@@ -23,6 +23,7 @@ import csv
 import gc
 import json
 import logging
+import multiprocessing
 import shutil
 import signal
 import threading
@@ -101,6 +102,13 @@ class Args:
     """OpenDrawer-v0: share of training episodes starting with fingers round the handle"""
     require_grasp: bool = True
     """dense reward's grasp term only for a real grasp, not a hook (False: the env's)"""
+    demo_episodes: int = 0
+    """OpenDrawer-v0: episodes of the scripted teacher (tasks.teacher) on the training assets
+    whose actions the policy is fitted to before PPO starts (0: PPO from scratch)"""
+    demo_workers: int = 2
+    """processes collecting the teacher's episodes"""
+    bc_epochs: int = 100
+    """epochs of behaviour cloning on the teacher's successful episodes"""
     randomize_physics: bool = False
     """training envs scale each object's movable parts' mass, damping and friction at every
     load (tasks.articulated.PhysicsRandomization's ranges); evaluation never does"""
@@ -443,7 +451,7 @@ def evaluate(
         freq = int(saved.get("control_freq", 20))
         if freq != 20:
             env_kwargs.setdefault("sim_config", {"control_freq": freq})
-        for k, v in _episode_steps(env_id, saved.get("eval_max_episode_steps"), freq).items():
+        for k, v in eval_episode_steps(env_id, saved.get("eval_max_episode_steps"), freq).items():
             env_kwargs.setdefault(k, v)
     env = make_cpu_env(env_id, assets, render_mode="rgb_array" if video_dir else None, **env_kwargs)
     norm = obs_norm or (lambda o: o)
@@ -513,7 +521,7 @@ def success_table(episodes: list[dict[str, Any]], key: str) -> dict[str, dict[st
     return table
 
 
-def _episode_steps(env_id: str, n: int | None, control_freq: int) -> dict[str, int]:
+def eval_episode_steps(env_id: str, n: int | None, control_freq: int) -> dict[str, int]:
     """``max_episode_steps`` for evaluation: ``n``, else the task's registered length
     (set for 20 Hz) scaled to ``control_freq``, else nothing (the registered default)."""
     if n is None and control_freq != 20:
@@ -577,6 +585,69 @@ def stop_on_sigterm() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
+    """Fit ``model``'s policy to the scripted teacher's successful episodes on the training
+    assets (tasks.teacher), and start the observation normalizer from their statistics.
+    Returns what was done: episodes, successful ones, cloned steps, the cloning loss at
+    its first and last epoch, and the seconds it took (they count in the run's
+    wall-clock)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tasks.teacher import Demos, clone
+
+    workers = max(1, min(args.demo_workers, args.demo_episodes))
+    share = [
+        args.demo_episodes // workers + (i < args.demo_episodes % workers) for i in range(workers)
+    ]
+    seeds = [50_000 + sum(share[:i]) for i in range(workers)]
+    t0 = time.time()
+    if workers == 1:
+        parts = [_collect_demos(args, share[0], seeds[0])]
+    else:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            parts = list(pool.map(_collect_demos, [args] * workers, share, seeds))
+    offset, pieces = 0, []
+    for d in parts:
+        pieces.append(Demos(d.obs, d.actions, d.episode + offset, d.success))
+        offset += len(d.success)
+    demos = Demos(
+        np.concatenate([d.obs for d in pieces]),
+        np.concatenate([d.actions for d in pieces]),
+        np.concatenate([d.episode for d in pieces]),
+        np.concatenate([d.success for d in pieces]),
+    ).successful()
+    if len(demos.obs) == 0:
+        raise RuntimeError(f"{args.assets}: the teacher opened no drawer in {offset} episodes")
+    normalize = None
+    if hasattr(venv, "obs_rms"):
+        venv.obs_rms.mean = demos.obs.mean(axis=0).astype(np.float64)
+        venv.obs_rms.var = demos.obs.var(axis=0).astype(np.float64)
+        venv.obs_rms.count = float(len(demos.obs))
+        normalize = ObsNorm.from_vec_normalize(venv)
+    losses = clone(model, demos, normalize, epochs=args.bc_epochs, seed=args.seed)
+    report = {
+        "episodes": offset,
+        "successful": int(demos.success.sum()),
+        "steps": len(demos.obs),
+        "bc_loss_first": round(losses[0], 5),
+        "bc_loss_last": round(losses[-1], 5),
+        "seconds": round(time.time() - t0, 1),
+    }
+    log.info("behaviour cloning on the teacher's episodes: %s", report)
+    return report
+
+
+def _collect_demos(args: Args, episodes: int, seed: int) -> Any:
+    from tasks.teacher import collect_demos
+
+    set_torch_threads(args.torch_threads)
+    return collect_demos(
+        args.env_id, args.assets, episodes, seed=seed, category=args.category,
+        control_mode=args.control_mode, sim_config={"control_freq": args.control_freq},
+        reconfiguration_freq=1,
+    )  # fmt: skip
 
 
 def learning_rate_schedule(args: Args) -> Any:
@@ -705,6 +776,7 @@ def train(args: Args) -> dict[str, Any]:
             venv = VecNormalize.load(str(ckpt.normalizer), venv)
         else:
             venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=args.gamma)
+    teacher: dict[str, Any] | None = None
     if resuming:
         model = PPO.load(
             ckpt.model, env=venv, device=args.device,
@@ -732,6 +804,9 @@ def train(args: Args) -> dict[str, Any]:
             set_initial_action_mean(model, -1, args.gripper_init)
         if args.gripper_log_std_init is not None:
             set_initial_log_std(model, -1, args.gripper_log_std_init)
+        if args.demo_episodes > 0:
+            teacher = start_from_teacher(model, venv, args)
+            (out / "teacher.json").write_text(json.dumps(teacher, indent=2))
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     if not resuming and eval_csv.exists():
@@ -741,12 +816,12 @@ def train(args: Args) -> dict[str, Any]:
         with open(eval_csv, newline="") as f:
             history = list(csv.DictReader(f))
     # wall-clock of the whole run, across resumes
-    t0 = time.time() - (ckpt.seconds() if resuming else 0.0)
+    t0 = time.time() - (ckpt.seconds() if resuming else teacher["seconds"] if teacher else 0.0)
     eval_kwargs: dict[str, Any] = dict(
         category=args.category,
         control_mode=args.control_mode,
         sim_config={"control_freq": args.control_freq},
-        **_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
+        **eval_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
     )
 
     def current_norm() -> ObsNorm | None:
@@ -849,6 +924,7 @@ def train(args: Args) -> dict[str, Any]:
         "last_eval": history[-1] if history else None,
         "timesteps": int(model.num_timesteps),
         "seconds": time.time() - t0,
+        "teacher": teacher,
     }
 
 

@@ -1,0 +1,301 @@
+"""A scripted opening teacher in the policy's own action space, and behaviour cloning.
+
+PPO from scratch on the drawer task learns to hook handles, not to grasp them, and on
+the door task mostly to pull bottom-hinged doors down (docs/tasks.md, "Training"). The
+teacher here grasps. It drives ``pd_ee_delta_pos`` (the PPO recipe's controller) from the
+env's state: line the open fingers up in front of the handle, move in to it, close, then
+move the hand the way the handle opens (a drawer's axis; for a door the tangent of the
+handle's circle about the hinge, the hand keeping its orientation: a bar parallel to the
+hinge turns between the fingers); when the fingers close on nothing or lose the handle,
+open, back off and come in again. Recessed pulls get the fingers opened only a little, so
+that one finger goes into the pocket (``recessed_open``).
+
+:func:`collect_demos` records the teacher on a folder of built assets (what the policy
+observes and what the teacher did); :func:`clone` fits an SB3 policy's mean action to
+them, the start of PPO with ``pact train --demo-episodes N`` (``tasks.train``).
+
+The teacher reads the simulator's state (the handle point and the joint's axis, which
+are also in the observation, the robot's yaw, which is not); the policy cloned from it
+sees only the observation.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: ``pd_ee_delta_pos``: an action of 1 moves the hand 0.1 m (ManiSkill's Panda config).
+POS_ACTION_SCALE = 0.1
+
+
+#: The tasks the teacher opens (opening tasks: the part starts closed).
+TEACHER_TASKS = ("OpenDrawer-v0", "OpenDoor-v0")
+
+
+@dataclass
+class OpeningTeacher:
+    """Grasp-and-pull for ``OpenDrawer-v0`` and ``OpenDoor-v0`` in ``pd_ee_delta_pos``.
+
+    Lengths in metres; ``pull`` is the hand's travel per control step while pulling.
+    Chosen on the procedural training objects (``pact sample --split train``).
+    """
+
+    standoff: float = 0.06
+    """line up this far in front of the handle before moving in"""
+    depth: float = 0.0
+    """the hand's centre this far behind the handle point when closing (bars, knobs)"""
+    recessed_depth: float = 0.01
+    """as ``depth``, recessed pulls"""
+    recessed_open: float = -0.2
+    """gripper action while reaching a recessed pull (-1..1 = fingers -0.01..0.04 m):
+    opened 1.5 cm a finger, so that one finger goes into the pocket"""
+    step: float = 0.05
+    """largest hand move per control step while reaching"""
+    pull: float = 0.02
+    """hand travel per control step while pulling a drawer"""
+    door_pull: float = 0.05
+    """as ``pull``, doors (and pushing them): a door resists more, and the controller's
+    force grows with the commanded step"""
+    close_steps: int = 3
+    """control steps the fingers get to close before pulling"""
+    overshoot: float = 0.08
+    """pull on to this fraction of the range past the goal, then hold still"""
+    stall_steps: int = 5
+    """a door whose opening grew less than 0.01 of its range over this many steps of
+    pulling has stalled (the arm, its orientation fixed, can follow the handle no further)"""
+    push_from: float = 0.15
+    """a stalled or lost door opened at least this fraction of its range is let go and
+    pushed on from inside, the hand going round its free edge"""
+    round_clear: float = 0.1
+    """how far past the handle (along the door, away from the hinge) and in front of it the
+    hand goes round the free edge"""
+    behind: float = 0.12
+    """how far behind the handle point the hand goes to reach the door's inner face"""
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase, self.t, self.retries, self.opening = "approach", 0, 0, []
+
+    def __call__(self, env: Any) -> np.ndarray:
+        """The action for ``env`` (a ManiSkill ``ArticulatedPartEnv``, one sub-scene)."""
+        u = env.unwrapped
+        tcp = u.agent.tcp.pose.p[0].cpu().numpy()
+        handle = u.handle_positions()[0].cpu().numpy()
+        axis = opening_direction(u, handle)
+        width = float(u.agent.robot.get_qpos()[0, 7:9].sum())
+        frac, goal = float(u.open_fraction()[0]), float(u.open_goal)
+        recessed = u.episode_parts[0].handle_kind == "recessed"
+        to_handle = handle - tcp
+        along = float(to_handle @ axis)
+        lateral = to_handle - along * axis
+        pre = handle + axis * self.standoff
+        grasp = handle - axis * (self.recessed_depth if recessed else self.depth)
+        gripper, move = (self.recessed_open if recessed else 1.0), np.zeros(3)
+        door = u.episode_parts[0].joint_type == "revolute"
+        # a door's round trip to its inner face, in the door's current frame
+        out = _unit(handle - u.target_link.pose.p[0].cpu().numpy(), axis) if door else axis
+        round_path = {
+            "back_off": handle + axis * self.round_clear,
+            "past_edge": handle + axis * self.round_clear + out * self.round_clear,
+            "behind": handle - axis * self.behind + out * self.round_clear,
+            "inside": handle - axis * self.behind - out * 0.03,
+        }
+        self.t += 1
+        if self.phase == "approach":
+            lined_up = np.linalg.norm(lateral) <= 0.01 or along >= -0.02
+            move = (grasp if lined_up else pre) - tcp
+            gap = float(np.linalg.norm(grasp - tcp))
+            if gap < 0.008 or (self.t > 12 and gap < 0.02):
+                self.phase, self.t = "close", 0
+        elif self.phase == "close":
+            gripper = -1.0
+            if self.t >= self.close_steps:
+                self.phase, self.t = "pull", 0
+        elif self.phase == "pull":
+            gripper = -1.0
+            if frac < goal + self.overshoot:
+                # back onto the path; a door's hand also waits for a lagging handle
+                back = to_handle if u.episode_parts[0].joint_type == "revolute" else lateral
+                move = axis * (self.door_pull if door else self.pull) + 0.5 * back
+            lost = width < 0.004 or np.linalg.norm(to_handle) > 0.05
+            self.opening.append(frac)
+            stalled = len(self.opening) > self.stall_steps and (
+                frac - self.opening[-1 - self.stall_steps] < 0.01
+            )
+            if door and frac < goal and frac >= self.push_from and (lost or stalled):
+                self.phase, self.t = "back_off", 0
+            elif frac < goal and lost:
+                self.phase, self.t = "retreat", 0
+                self.retries += 1
+        elif self.phase in round_path:
+            move = round_path[self.phase] - tcp
+            if np.linalg.norm(move) < 0.02 or self.t > 10:
+                order = list(round_path)
+                nxt = order.index(self.phase) + 1
+                self.phase, self.t = (order[nxt] if nxt < len(order) else "push"), 0
+        elif self.phase == "push":
+            # press the inner face (about behind - 0.04 m behind the handle point) on
+            if frac < goal + self.overshoot:
+                target = handle - axis * (self.behind - 0.06) - out * 0.03
+                move = axis * self.door_pull + 0.5 * (target - tcp)
+        elif self.phase == "retreat":
+            gripper = 1.0
+            move = pre - tcp
+            if np.linalg.norm(move) < 0.01 or self.t > 6:
+                self.phase, self.t = "approach", 0
+        norm, step = float(np.linalg.norm(move)), max(self.step, self.door_pull if door else 0.0)
+        if norm > step:
+            move = move * step / norm
+        return (
+            np.concatenate([_world_to_base(move, u) / POS_ACTION_SCALE, [gripper]])
+            .clip(-1.0, 1.0)
+            .astype(np.float32)
+        )
+
+
+def opening_direction(u: Any, handle: np.ndarray) -> np.ndarray:
+    """(3,) unit world direction in which the target part's handle moves as it opens: the
+    drawer's axis, or for a revolute part the tangent of the handle's circle (the
+    target link's origin lies on the hinge, and the joint opens toward its upper limit,
+    turning the right-handed way about its axis)."""
+    axis = u.joint_axis_world()[0].cpu().numpy()
+    if u.episode_parts[0].joint_type != "revolute":
+        return axis
+    arm = handle - u.target_link.pose.p[0].cpu().numpy()
+    arm = arm - (arm @ axis) * axis
+    tangent = np.cross(axis, arm)
+    return tangent / max(float(np.linalg.norm(tangent)), 1e-9)
+
+
+def _unit(v: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """``v`` without its component along ``axis``, normalized."""
+    v = v - (v @ axis) * axis
+    return v / max(float(np.linalg.norm(v)), 1e-9)
+
+
+def _world_to_base(v: np.ndarray, u: Any) -> np.ndarray:
+    """A world-frame translation in the robot base's frame (``pd_ee_delta_pos`` moves the
+    hand along the base's axes; the base is only turned about z)."""
+    w, x, y, z = (float(c) for c in u.agent.robot.pose.q[0])
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+
+
+@dataclass
+class Demos:
+    """Observations and the teacher's actions, step by step, with each step's episode."""
+
+    obs: np.ndarray
+    actions: np.ndarray
+    episode: np.ndarray
+    success: np.ndarray
+    """(episodes,) whether each episode succeeded"""
+
+    def successful(self) -> Demos:
+        keep = self.success[self.episode]
+        return Demos(self.obs[keep], self.actions[keep], self.episode[keep], self.success)
+
+
+def collect_demos(
+    env_id: str,
+    assets: str,
+    episodes: int,
+    seed: int = 50_000,
+    action_noise: float = 0.05,
+    max_episode_steps: int | None = None,
+    **env_kwargs: Any,
+) -> Demos:
+    """Run :class:`OpeningTeacher` for ``episodes`` episodes (episode k seeded ``seed + k``)
+    and record each step's flat observation and the teacher's action. The env is stepped
+    with the teacher's action plus Gaussian noise of ``action_noise`` on the hand's move
+    (the recorded label stays the clean action), so that the demos also show the way back
+    from where a clone's errors lead (DART)."""
+    from tasks.train import eval_episode_steps, make_cpu_env
+
+    if env_id not in TEACHER_TASKS:
+        raise ValueError(
+            f"{env_id}: the scripted teacher opens parts only ({', '.join(TEACHER_TASKS)})"
+        )
+    env_kwargs.setdefault("control_mode", "pd_ee_delta_pos")
+    if env_kwargs["control_mode"] != "pd_ee_delta_pos":
+        raise ValueError(f"the teacher drives pd_ee_delta_pos, not {env_kwargs['control_mode']}")
+    freq = int(env_kwargs.get("sim_config", {}).get("control_freq", 20))
+    env_kwargs.update(eval_episode_steps(env_id, max_episode_steps, freq))
+    env = make_cpu_env(env_id, assets, **env_kwargs)
+    rng = np.random.default_rng(seed)
+    obs_rows, act_rows, ep_rows, success = [], [], [], []
+    try:
+        for k in range(episodes):
+            obs, _ = env.reset(seed=seed + k)
+            teacher, done, info = OpeningTeacher(), False, {}
+            while not done:
+                action = teacher(env)
+                obs_rows.append(obs)
+                act_rows.append(action)
+                ep_rows.append(k)
+                noisy = action.copy()
+                noisy[:3] += rng.normal(0.0, action_noise, 3)
+                obs, _, term, trunc, info = env.step(np.clip(noisy, -1.0, 1.0))
+                done = term or trunc
+            success.append(bool(info.get("success", False)))
+    finally:
+        env.close()
+    log.info("teacher: %d of %d episodes succeeded", sum(success), episodes)
+    return Demos(
+        np.asarray(obs_rows, np.float32),
+        np.asarray(act_rows, np.float32),
+        np.asarray(ep_rows, np.int64),
+        np.asarray(success, bool),
+    )
+
+
+def clone(
+    model: Any,
+    demos: Demos,
+    normalize: Any = None,
+    epochs: int = 200,
+    batch_size: int = 256,
+    learning_rate: float = 1e-3,
+    seed: int = 0,
+) -> list[float]:
+    """Fit the mean action of ``model`` (an SB3 PPO model, Gaussian MlpPolicy) to the
+    demos' actions (mean squared error; the log std stays); ``normalize`` maps raw
+    observations to what the policy sees. Returns the loss of each epoch."""
+    import torch
+
+    obs = normalize(demos.obs) if normalize is not None else demos.obs
+    x = torch.as_tensor(obs, dtype=torch.float32, device=model.device)
+    y = torch.as_tensor(demos.actions, dtype=torch.float32, device=model.device)
+    policy = model.policy
+    params = [
+        *policy.features_extractor.parameters(),
+        *policy.mlp_extractor.policy_net.parameters(),
+        *policy.action_net.parameters(),
+    ]
+    opt = torch.optim.Adam(params, lr=learning_rate)
+    gen = torch.Generator().manual_seed(seed)
+    losses = []
+    policy.set_training_mode(True)
+    for _ in range(epochs):
+        order = torch.randperm(len(x), generator=gen)
+        total = 0.0
+        for i in range(0, len(x), batch_size):
+            idx = order[i : i + batch_size]
+            features = policy.extract_features(x[idx], policy.pi_features_extractor)
+            mean = policy.action_net(policy.mlp_extractor.forward_actor(features))
+            loss = torch.nn.functional.mse_loss(mean, y[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += loss.item() * len(idx)
+        losses.append(total / len(x))
+    policy.set_training_mode(False)
+    return losses

@@ -1,0 +1,138 @@
+"""The scripted drawer teacher (tasks.teacher) and PPO started from its demonstrations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from asset_fixtures import write_task_assets
+
+
+@pytest.fixture(scope="module")
+def procedural_assets(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_task_assets(tmp_path_factory.mktemp("assets"))
+
+
+def test_teacher_grasps_the_handle_and_opens_the_drawer(procedural_assets: Path) -> None:
+    from tasks.teacher import OpeningTeacher
+    from tasks.train import make_cpu_env
+
+    env = make_cpu_env(
+        "OpenDrawer-v0", str(procedural_assets), control_mode="pd_ee_delta_pos",
+        sim_config={"control_freq": 10}, max_episode_steps=50,
+    )  # fmt: skip
+    try:
+        opened = []
+        for seed in (10_000, 10_001):
+            env.reset(seed=seed)
+            teacher, done, grasped, info = OpeningTeacher(), False, False, {}
+            while not done:
+                _, _, term, trunc, info = env.step(teacher(env))
+                grasped |= bool(info["is_grasped"])
+                done = term or trunc
+            # a grasp, not a hook: both fingers pressed on the drawer at some step
+            opened.append(bool(info["success"]) and grasped)
+            assert float(info["open_fraction"]) >= 0.75 or not info["success"]
+    finally:
+        env.close()
+    assert any(opened)
+
+
+def test_teacher_opens_side_and_bottom_hinged_doors(procedural_assets: Path) -> None:
+    from tasks.teacher import OpeningTeacher
+    from tasks.train import eval_episode_steps, make_cpu_env
+
+    opened: dict[str, bool] = {}
+    for category in ("microwave", "oven"):
+        env = make_cpu_env(
+            "OpenDoor-v0", str(procedural_assets), category=category,
+            control_mode="pd_ee_delta_pos", sim_config={"control_freq": 10},
+            **eval_episode_steps("OpenDoor-v0", None, 10),
+        )  # fmt: skip
+        try:
+            env.reset(seed=10_000)
+            kind = env.unwrapped.episode_parts[0].kind
+            teacher, done, info = OpeningTeacher(), False, {}
+            while not done:
+                _, _, term, trunc, info = env.step(teacher(env))
+                done = term or trunc
+            opened[kind] = bool(info["success"])
+        finally:
+            env.close()
+    assert opened == {"side_door": True, "bottom_door": True}
+
+
+def test_clone_fits_the_policy_mean_to_the_demonstrated_actions() -> None:
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from tasks.teacher import Demos, clone
+
+    class Flat(gym.Env):
+        observation_space = gym.spaces.Box(-np.inf, np.inf, (6,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            return np.zeros(6, np.float32), {}
+
+        def step(self, action):
+            return np.zeros(6, np.float32), 0.0, True, False, {}
+
+    model = PPO("MlpPolicy", make_vec_env(Flat, 1), seed=0, policy_kwargs={"net_arch": [64, 64]})
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(512, 6)).astype(np.float32)
+    actions = np.tanh(obs[:, :4] - 0.5 * obs[:, 2:]).astype(np.float32)
+    demos = Demos(obs, actions, np.arange(512) // 32, np.ones(16, bool))
+    before = np.mean((model.predict(obs, deterministic=True)[0] - actions) ** 2)
+    losses = clone(model, demos, epochs=150)
+    after = np.mean((model.predict(obs, deterministic=True)[0] - actions) ** 2)
+    assert losses[-1] < 0.1 * losses[0]
+    assert after < 0.02 < before
+
+
+def test_demos_keep_only_successful_episodes() -> None:
+    from tasks.teacher import Demos
+
+    demos = Demos(
+        obs=np.arange(10, dtype=np.float32)[:, None],
+        actions=np.zeros((10, 4), np.float32),
+        episode=np.array([0, 0, 0, 1, 1, 2, 2, 2, 2, 2]),
+        success=np.array([True, False, True]),
+    )
+    kept = demos.successful()
+    assert kept.obs[:, 0].tolist() == [0, 1, 2, 5, 6, 7, 8, 9]
+    assert kept.episode.tolist() == [0, 0, 0, 2, 2, 2, 2, 2]
+
+
+@pytest.mark.slow
+def test_ppo_starts_from_the_teachers_demonstrations(
+    procedural_assets: Path, tmp_path: Path
+) -> None:
+    from tasks.train import Args, ObsNorm, train
+
+    args = Args(
+        env_id="OpenDrawer-v0", assets=str(procedural_assets), num_envs=1, vector="sync",
+        total_timesteps=0, eval_every=0, eval_episodes=1, eval_max_episode_steps=5,
+        video_episodes=0, progress_bar=False, out_dir=str(tmp_path / "run"),
+        demo_episodes=2, demo_workers=1, bc_epochs=20,
+    )  # fmt: skip
+    out = train(args)
+    teacher = out["teacher"]
+    assert teacher["episodes"] == 2 and teacher["successful"] >= 1
+    assert teacher["bc_loss_last"] < teacher["bc_loss_first"]
+    # the normalizer starts from the demonstrations' statistics: the drawer's joint axis
+    # (world +x, the object turned by at most 0.1 rad) has a mean near 1 and little spread
+    norm = ObsNorm.load(tmp_path / "run" / "obs_norm.npz")
+    assert norm.mean[37] > 0.95 and norm.var[37] < 0.01
+    assert (tmp_path / "run" / "teacher.json").is_file()
+
+
+def test_the_teacher_refuses_other_tasks(procedural_assets: Path) -> None:
+    from tasks.teacher import collect_demos
+
+    with pytest.raises(ValueError, match="opens parts only"):
+        collect_demos("CloseDoor-v0", str(procedural_assets), 1)
+    with pytest.raises(ValueError, match="pd_ee_delta_pos"):
+        collect_demos("OpenDrawer-v0", str(procedural_assets), 1, control_mode="pd_joint_delta_pos")
