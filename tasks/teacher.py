@@ -122,7 +122,7 @@ class OpeningTeacher:
             gripper = -1.0
             if frac < goal + self.overshoot:
                 # back onto the path; a door's hand also waits for a lagging handle
-                back = to_handle if u.episode_parts[0].joint_type == "revolute" else lateral
+                back = to_handle if door else lateral
                 move = axis * (self.door_pull if door else self.pull) + 0.5 * back
             lost = width < 0.004 or np.linalg.norm(to_handle) > 0.05
             self.opening.append(frac)
@@ -141,7 +141,8 @@ class OpeningTeacher:
                 nxt = order.index(self.phase) + 1
                 self.phase, self.t = (order[nxt] if nxt < len(order) else "push"), 0
         elif self.phase == "push":
-            # press the inner face (about behind - 0.04 m behind the handle point) on
+            # aim 0.06 m behind the handle point (the inner face is about 0.08 m behind
+            # it, past the handle's standoff and the panel) and move the way it opens
             if frac < goal + self.overshoot:
                 target = handle - axis * (self.behind - 0.06) - out * 0.03
                 move = axis * self.door_pull + 0.5 * (target - tcp)
