@@ -10,9 +10,10 @@ hinge turns between the fingers); when the fingers close on nothing or lose the 
 open, back off and come in again. Recessed pulls get the fingers opened only a little, so
 that one finger goes into the pocket (``recessed_open``).
 
-:func:`collect_demos` records the teacher on a folder of built assets (what the policy
-observes and what the teacher did); :func:`clone` fits an SB3 policy's mean action to
-them, the start of PPO with ``pact train --demo-episodes N`` (``tasks.train``).
+:func:`collect_demos` records the teacher in a task env (what the policy observes and
+what the teacher did); :func:`clone` fits an SB3 policy's mean action to them, the start
+of PPO with ``pact train --demo-episodes N`` (``tasks.train.start_from_teacher``, which
+makes the envs: this module imports nothing of the project).
 
 The teacher reads the simulator's state (the handle point and the joint's axis, which
 are also in the observation, the robot's yaw, which is not); the policy cloned from it
@@ -205,50 +206,38 @@ class Demos:
         return Demos(self.obs[keep], self.actions[keep], self.episode[keep], self.success)
 
 
-def collect_demos(
-    env_id: str,
-    assets: str,
-    episodes: int,
-    seed: int = 50_000,
-    action_noise: float = 0.05,
-    max_episode_steps: int | None = None,
-    **env_kwargs: Any,
-) -> Demos:
-    """Run :class:`OpeningTeacher` for ``episodes`` episodes (episode k seeded ``seed + k``)
-    and record each step's flat observation and the teacher's action. The env is stepped
-    with the teacher's action plus Gaussian noise of ``action_noise`` on the hand's move
-    (the recorded label stays the clean action), so that the demos also show the way back
-    from where a clone's errors lead (DART)."""
-    from tasks.train import eval_episode_steps, make_cpu_env
-
+def check_task(env_id: str, control_mode: str) -> None:
+    """Raise ValueError unless the teacher can demonstrate ``env_id`` with ``control_mode``."""
     if env_id not in TEACHER_TASKS:
         raise ValueError(
             f"{env_id}: the scripted teacher opens parts only ({', '.join(TEACHER_TASKS)})"
         )
-    env_kwargs.setdefault("control_mode", "pd_ee_delta_pos")
-    if env_kwargs["control_mode"] != "pd_ee_delta_pos":
-        raise ValueError(f"the teacher drives pd_ee_delta_pos, not {env_kwargs['control_mode']}")
-    freq = int(env_kwargs.get("sim_config", {}).get("control_freq", 20))
-    env_kwargs.update(eval_episode_steps(env_id, max_episode_steps, freq))
-    env = make_cpu_env(env_id, assets, **env_kwargs)
+    if control_mode != "pd_ee_delta_pos":
+        raise ValueError(f"the teacher drives pd_ee_delta_pos, not {control_mode}")
+
+
+def collect_demos(env: Any, episodes: int, seed: int = 50_000, action_noise: float = 0.05) -> Demos:
+    """Run :class:`OpeningTeacher` on ``env`` (an opening task in ``pd_ee_delta_pos`` with
+    flat observations, ``tasks.train.make_cpu_env``) for ``episodes`` episodes (episode k
+    seeded ``seed + k``) and record each step's observation and the teacher's action. The
+    env is stepped with the teacher's action plus Gaussian noise of ``action_noise`` on the
+    hand's move (the recorded label stays the clean action), so that the demos also show
+    the way back from where a clone's errors lead (DART)."""
     rng = np.random.default_rng(seed)
     obs_rows, act_rows, ep_rows, success = [], [], [], []
-    try:
-        for k in range(episodes):
-            obs, _ = env.reset(seed=seed + k)
-            teacher, done, info = OpeningTeacher(), False, {}
-            while not done:
-                action = teacher(env)
-                obs_rows.append(obs)
-                act_rows.append(action)
-                ep_rows.append(k)
-                noisy = action.copy()
-                noisy[:3] += rng.normal(0.0, action_noise, 3)
-                obs, _, term, trunc, info = env.step(np.clip(noisy, -1.0, 1.0))
-                done = term or trunc
-            success.append(bool(info.get("success", False)))
-    finally:
-        env.close()
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed + k)
+        teacher, done, info = OpeningTeacher(), False, {}
+        while not done:
+            action = teacher(env)
+            obs_rows.append(obs)
+            act_rows.append(action)
+            ep_rows.append(k)
+            noisy = action.copy()
+            noisy[:3] += rng.normal(0.0, action_noise, 3)
+            obs, _, term, trunc, info = env.step(np.clip(noisy, -1.0, 1.0))
+            done = term or trunc
+        success.append(bool(info.get("success", False)))
     log.info("teacher: %d of %d episodes succeeded", sum(success), episodes)
     return Demos(
         np.asarray(obs_rows, np.float32),

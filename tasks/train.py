@@ -595,8 +595,9 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
     wall-clock)."""
     from concurrent.futures import ProcessPoolExecutor
 
-    from tasks.teacher import Demos, clone
+    from tasks.teacher import Demos, check_task, clone
 
+    check_task(args.env_id, args.control_mode)
     workers = max(1, min(args.demo_workers, args.demo_episodes))
     share = [
         args.demo_episodes // workers + (i < args.demo_episodes % workers) for i in range(workers)
@@ -640,14 +641,20 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
 
 
 def _collect_demos(args: Args, episodes: int, seed: int) -> Any:
+    """The teacher's episodes on the training assets, each loading an asset, of the task's
+    own length (7.5 s for doors, 5 s for drawers)."""
     from tasks.teacher import collect_demos
 
     set_torch_threads(args.torch_threads)
-    return collect_demos(
-        args.env_id, args.assets, episodes, seed=seed, category=args.category,
-        control_mode=args.control_mode, sim_config={"control_freq": args.control_freq},
-        reconfiguration_freq=1,
+    env = make_cpu_env(
+        args.env_id, args.assets, category=args.category, control_mode=args.control_mode,
+        sim_config={"control_freq": args.control_freq}, reconfiguration_freq=1,
+        **eval_episode_steps(args.env_id, None, args.control_freq),
     )  # fmt: skip
+    try:
+        return collect_demos(env, episodes, seed=seed)
+    finally:
+        env.close()
 
 
 def learning_rate_schedule(args: Args) -> Any:
@@ -821,7 +828,7 @@ def train(args: Args) -> dict[str, Any]:
         category=args.category,
         control_mode=args.control_mode,
         sim_config={"control_freq": args.control_freq},
-        **eval_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
+        **eval_episode_steps(args.env_id, None, args.control_freq),
     )
 
     def current_norm() -> ObsNorm | None:

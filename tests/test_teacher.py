@@ -129,10 +129,11 @@ def test_ppo_starts_from_the_teachers_demonstrations(
     assert (tmp_path / "run" / "teacher.json").is_file()
 
 
-def test_the_teacher_refuses_other_tasks(procedural_assets: Path) -> None:
-    from tasks.teacher import collect_demos
+def test_the_teacher_refuses_other_tasks_and_controllers() -> None:
+    from tasks.teacher import check_task
 
+    check_task("OpenDoor-v0", "pd_ee_delta_pos")
     with pytest.raises(ValueError, match="opens parts only"):
-        collect_demos("CloseDoor-v0", str(procedural_assets), 1)
+        check_task("CloseDoor-v0", "pd_ee_delta_pos")
     with pytest.raises(ValueError, match="pd_ee_delta_pos"):
-        collect_demos("OpenDrawer-v0", str(procedural_assets), 1, control_mode="pd_joint_delta_pos")
+        check_task("OpenDrawer-v0", "pd_joint_delta_pos")
