@@ -103,8 +103,9 @@ class Args:
     require_grasp: bool = True
     """dense reward's grasp term only for a real grasp, not a hook (False: the env's)"""
     demo_episodes: int = 0
-    """OpenDrawer-v0: episodes of the scripted teacher (tasks.teacher) on the training assets
-    whose actions the policy is fitted to before PPO starts (0: PPO from scratch)"""
+    """OpenDrawer-v0, OpenDoor-v0: episodes of the scripted teacher (tasks.teacher) on the
+    training assets whose actions the policy is fitted to before PPO starts (0: PPO from
+    scratch)"""
     demo_workers: int = 2
     """processes collecting the teacher's episodes"""
     bc_epochs: int = 100
@@ -620,7 +621,7 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
         np.concatenate([d.success for d in pieces]),
     ).successful()
     if len(demos.obs) == 0:
-        raise RuntimeError(f"{args.assets}: the teacher opened no drawer in {offset} episodes")
+        raise RuntimeError(f"{args.assets}: the teacher opened no part in {offset} episodes")
     normalize = None
     if hasattr(venv, "obs_rms"):
         venv.obs_rms.mean = demos.obs.mean(axis=0).astype(np.float64)
@@ -828,7 +829,7 @@ def train(args: Args) -> dict[str, Any]:
         category=args.category,
         control_mode=args.control_mode,
         sim_config={"control_freq": args.control_freq},
-        **eval_episode_steps(args.env_id, None, args.control_freq),
+        **eval_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
     )
 
     def current_norm() -> ObsNorm | None:

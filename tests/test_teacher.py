@@ -137,3 +137,26 @@ def test_the_teacher_refuses_other_tasks_and_controllers() -> None:
         check_task("CloseDoor-v0", "pd_ee_delta_pos")
     with pytest.raises(ValueError, match="pd_ee_delta_pos"):
         check_task("OpenDrawer-v0", "pd_joint_delta_pos")
+
+
+def test_opening_direction_is_the_drawer_axis_or_the_door_handles_tangent() -> None:
+    """A hand-computed case: a door hinged on the world z axis through (1, 0, 0) with its
+    handle 0.5 m along +y from the hinge opens (right-handed about +z) toward -x; with the
+    hinge axis flipped it opens toward +x; a drawer's handle moves along its axis."""
+    from types import SimpleNamespace
+
+    import torch
+
+    from tasks.teacher import opening_direction
+
+    def env(joint_type: str, axis: tuple[float, float, float]) -> SimpleNamespace:
+        return SimpleNamespace(
+            joint_axis_world=lambda: torch.tensor([axis]),
+            episode_parts=[SimpleNamespace(joint_type=joint_type)],
+            target_link=SimpleNamespace(pose=SimpleNamespace(p=torch.tensor([[1.0, 0.0, 0.3]]))),
+        )
+
+    handle = np.array([1.0, 0.5, 0.9])
+    assert np.allclose(opening_direction(env("revolute", (0, 0, 1)), handle), [-1, 0, 0])
+    assert np.allclose(opening_direction(env("revolute", (0, 0, -1)), handle), [1, 0, 0])
+    assert np.allclose(opening_direction(env("prismatic", (1, 0, 0)), handle), [1, 0, 0])
