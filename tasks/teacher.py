@@ -15,9 +15,10 @@ what the teacher did); :func:`clone` fits an SB3 policy's mean action to them, t
 of PPO with ``pact train --demo-episodes N`` (``tasks.train.start_from_teacher``, which
 makes the envs: this module imports nothing of the project).
 
-The teacher reads the simulator's state (the handle point and the joint's axis, which
-are also in the observation, the robot's yaw, which is not); the policy cloned from it
-sees only the observation.
+The teacher reads the simulator's state (the handle point, the joint's axis and the
+finger opening, which are also in the observation; a door's hinge position and the
+robot base's orientation, which are not); the policy cloned from it sees only the
+observation.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ class OpeningTeacher:
         self.reset()
 
     def reset(self) -> None:
-        self.phase, self.t, self.retries, self.opening = "approach", 0, 0, []
+        self.phase, self.t, self.opening = "approach", 0, []
 
     def __call__(self, env: Any) -> np.ndarray:
         """The action for ``env`` (a ManiSkill ``ArticulatedPartEnv``, one sub-scene)."""
@@ -134,7 +135,6 @@ class OpeningTeacher:
                 self.phase, self.t = "back_off", 0
             elif frac < goal and lost:
                 self.phase, self.t = "retreat", 0
-                self.retries += 1
         elif self.phase in round_path:
             move = round_path[self.phase] - tcp
             if np.linalg.norm(move) < 0.02 or self.t > 10:
@@ -184,11 +184,9 @@ def _unit(v: np.ndarray, axis: np.ndarray) -> np.ndarray:
 
 def _world_to_base(v: np.ndarray, u: Any) -> np.ndarray:
     """A world-frame translation in the robot base's frame (``pd_ee_delta_pos`` moves the
-    hand along the base's axes; the base is only turned about z)."""
-    w, x, y, z = (float(c) for c in u.agent.robot.pose.q[0])
-    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+    hand along the base's axes)."""
+    rotation = u.agent.robot.pose.to_transformation_matrix()[0, :3, :3].cpu().numpy()
+    return rotation.T @ v
 
 
 @dataclass

@@ -33,7 +33,6 @@ def test_teacher_grasps_the_handle_and_opens_the_drawer(procedural_assets: Path)
                 done = term or trunc
             # a grasp, not a hook: both fingers pressed on the drawer at some step
             opened.append(bool(info["success"]) and grasped)
-            assert float(info["open_fraction"]) >= 0.75 or not info["success"]
     finally:
         env.close()
     assert any(opened)
