@@ -65,6 +65,47 @@ def test_decimate_keeps_a_closed_coloured_mesh_closed_and_coloured():
     assert decimate(m, len(m.faces)) is m  # within the target: the mesh itself
 
 
+def test_a_heavy_closed_mesh_is_presimplified_and_stays_closed(monkeypatch):
+    import generator.mesh_repair.decimation as decimation
+
+    m = _coloured_sphere(6)  # 81920 faces
+    seen = []
+    real = decimation._presimplify
+    monkeypatch.setattr(decimation, "_presimplify", lambda mesh, t: seen.append(t) or real(mesh, t))
+    out = decimate(m, 4000)
+    assert seen == [int(decimation.PRESIMPLIFY_FACTOR * 4000)]
+    assert len(out.faces) <= 4000 and is_closed_volume(out) and _pieces(out) == 1
+    assert (out.area_faces > 0).all()  # no zero-area face: dropping it would open a hole
+    assert out.volume == pytest.approx(m.volume, rel=0.02)
+    rgba = np.asarray(out.visual.vertex_colors)
+    assert (rgba[out.vertices[:, 2] > 0.05, 0] > 150).all()
+    # a pre-pass that breaks the mesh is dropped: MeshLab alone
+    monkeypatch.setattr(decimation, "_presimplify", lambda mesh, t: seen.append(t) and None)
+    seen.clear()
+    alone = decimate(m, 4000)
+    assert seen and len(alone.faces) <= 4000 and is_closed_volume(alone)
+    # an open mesh is not pre-simplified (the pre-pass keeps no boundary)
+    seen.clear()
+    opened = m.copy()
+    opened.update_faces(np.arange(len(m.faces)) > 0)
+    decimate(opened, 4000)
+    assert seen == []
+
+
+def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse():
+    # a cabinet's shell as a generator's marching cubes draws it: thin walls round a cavity
+    grid = np.zeros((70, 50, 90), bool)
+    grid[5:65, 5:45, 5:85] = True
+    grid[8:62, 8:60, 8:82] = False  # open at the front
+    shell = trimesh.voxel.VoxelGrid(grid).marching_cubes
+    assert is_closed_volume(shell) and len(shell.faces) > 40_000
+    out = decimate(shell, 3000)
+    assert len(out.faces) <= 3000 and is_closed_volume(out) and (out.area_faces > 0).all()
+    assert out.volume == pytest.approx(shell.volume, rel=0.03)
+    near = trimesh.proximity.closest_point(shell, out.vertices)[1]
+    assert near.max() < 1.0  # within a voxel of the surface
+
+
 def test_decimate_keeps_a_texture_and_its_mapping():
     m = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
     # texture: left half (y < 0) red, right half blue, mapped by the y coordinate
