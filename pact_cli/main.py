@@ -980,6 +980,19 @@ def train(
         "training assets (this many episodes; 0: PPO from scratch).",
     ),
     learning_rate: float = typer.Option(3e-4, help="PPO's initial learning rate."),
+    anchor_batches: int = typer.Option(
+        0,
+        help="With --demo-episodes: minibatches of behaviour cloning on the teacher's steps "
+        "between PPO's updates, so that PPO keeps the clone's grasps (0: none).",
+    ),
+    critic_warmup_steps: int = typer.Option(
+        0, help="Env steps at the start of PPO that train only the value function."
+    ),
+    log_std_init: float = typer.Option(
+        -2.0,
+        help="Initial log standard deviation of PPO's action noise (in the action's -1..1 "
+        "units); a clone of the teacher keeps closer to its grasps with less (-3.0).",
+    ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
@@ -1012,6 +1025,9 @@ def train(
         randomize_physics=randomize_physics,
         demo_episodes=demo_episodes,
         learning_rate=learning_rate,
+        log_std_init=log_std_init,
+        anchor_batches=anchor_batches,
+        critic_warmup_steps=critic_warmup_steps,
         progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,

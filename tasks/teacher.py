@@ -13,7 +13,8 @@ that one finger goes into the pocket (``recessed_open``).
 :func:`collect_demos` records the teacher in a task env (what the policy observes and
 what the teacher did); :func:`clone` fits an SB3 policy's mean action to them, the start
 of PPO with ``pact train --demo-episodes N`` (``tasks.train.start_from_teacher``, which
-makes the envs: this module imports nothing of the project).
+makes the envs: this module imports nothing of the project); :class:`CloneAnchor` keeps
+fitting it between PPO's updates (``--anchor-batches``).
 
 The teacher reads the simulator's state (the handle point, the joint's axis and the
 finger opening, which are also in the observation; a door's hinge position and the
@@ -245,6 +246,21 @@ def collect_demos(env: Any, episodes: int, seed: int = 50_000, action_noise: flo
     )
 
 
+def actor_parameters(policy: Any) -> list[Any]:
+    """The parameters of an SB3 Gaussian MlpPolicy's mean action (not the value function's,
+    not the log std)."""
+    return [
+        *policy.features_extractor.parameters(),
+        *policy.mlp_extractor.policy_net.parameters(),
+        *policy.action_net.parameters(),
+    ]
+
+
+def _mean_action(policy: Any, x: Any) -> Any:
+    features = policy.extract_features(x, policy.pi_features_extractor)
+    return policy.action_net(policy.mlp_extractor.forward_actor(features))
+
+
 def clone(
     model: Any,
     demos: Demos,
@@ -263,12 +279,7 @@ def clone(
     x = torch.as_tensor(obs, dtype=torch.float32, device=model.device)
     y = torch.as_tensor(demos.actions, dtype=torch.float32, device=model.device)
     policy = model.policy
-    params = [
-        *policy.features_extractor.parameters(),
-        *policy.mlp_extractor.policy_net.parameters(),
-        *policy.action_net.parameters(),
-    ]
-    opt = torch.optim.Adam(params, lr=learning_rate)
+    opt = torch.optim.Adam(actor_parameters(policy), lr=learning_rate)
     gen = torch.Generator().manual_seed(seed)
     losses = []
     policy.set_training_mode(True)
@@ -277,9 +288,7 @@ def clone(
         total = 0.0
         for i in range(0, len(x), batch_size):
             idx = order[i : i + batch_size]
-            features = policy.extract_features(x[idx], policy.pi_features_extractor)
-            mean = policy.action_net(policy.mlp_extractor.forward_actor(features))
-            loss = torch.nn.functional.mse_loss(mean, y[idx])
+            loss = torch.nn.functional.mse_loss(_mean_action(policy, x[idx]), y[idx])
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -287,3 +296,59 @@ def clone(
         losses.append(total / len(x))
     policy.set_training_mode(False)
     return losses
+
+
+class CloneAnchor:
+    """Behaviour cloning kept up while PPO trains the clone: each :meth:`step` runs
+    ``batches`` minibatches of the mean-squared-error fit of :func:`clone` on random demo
+    steps (its own Adam at ``learning_rate``), pulling the policy's mean action back toward
+    the teacher's where PPO has moved it, so that PPO improves the clone without trading
+    its grasps for hooks (the auxiliary behaviour-cloning term of DAPG, here as separate
+    steps between PPO's updates)."""
+
+    def __init__(
+        self,
+        model: Any,
+        demos: Demos,
+        batches: int,
+        batch_size: int = 256,
+        learning_rate: float = 1e-4,
+        seed: int = 0,
+    ) -> None:
+        import torch
+
+        if batches < 1 or len(demos.obs) == 0:
+            raise ValueError(
+                f"need batches >= 1 and demo steps, got {batches} and {len(demos.obs)}"
+            )
+        self.model, self.demos = model, demos
+        self.batches, self.batch_size = int(batches), int(batch_size)
+        self.opt = torch.optim.Adam(actor_parameters(model.policy), lr=learning_rate)
+        self.gen = torch.Generator().manual_seed(seed)
+
+    def step(self, normalize: Any = None) -> float:
+        """``batches`` minibatches; ``normalize`` (the observation normalizer as it is now)
+        maps raw observations to what the policy sees. Returns the mean loss."""
+        import torch
+
+        policy = self.model.policy
+        policy.set_training_mode(True)
+        total = 0.0
+        for _ in range(self.batches):
+            idx = torch.randint(len(self.demos.obs), (self.batch_size,), generator=self.gen)
+            obs = self.demos.obs[idx.numpy()]
+            x = torch.as_tensor(
+                normalize(obs) if normalize is not None else obs,
+                dtype=torch.float32,
+                device=self.model.device,
+            )
+            y = torch.as_tensor(
+                self.demos.actions[idx.numpy()], dtype=torch.float32, device=self.model.device
+            )
+            loss = torch.nn.functional.mse_loss(_mean_action(policy, x), y)
+            self.opt.zero_grad()
+            loss.backward()
+            self.opt.step()
+            total += loss.item()
+        policy.set_training_mode(False)
+        return total / self.batches

@@ -110,6 +110,16 @@ class Args:
     """processes collecting the teacher's episodes"""
     bc_epochs: int = 100
     """epochs of behaviour cloning on the teacher's successful episodes"""
+    anchor_batches: int = 0
+    """with demo_episodes: minibatches of behaviour cloning on the teacher's successful steps
+    between PPO's updates (tasks.teacher.CloneAnchor; 0: none), so that PPO improves the
+    clone without trading its grasps for hooks"""
+    anchor_learning_rate: float = 1e-4
+    """learning rate of those minibatches"""
+    critic_warmup_steps: int = 0
+    """env steps at the start of PPO during which only the value function learns (the
+    policy's mean and log std frozen): a cloned actor is not moved by the advantages of an
+    untrained critic"""
     randomize_physics: bool = False
     """training envs scale each object's movable parts' mass, damping and friction at every
     load (tasks.articulated.PhysicsRandomization's ranges); evaluation never does"""
@@ -588,12 +598,12 @@ def stop_on_sigterm() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
+def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any], Any]:
     """Fit ``model``'s policy to the scripted teacher's successful episodes on the training
     assets (tasks.teacher), and start the observation normalizer from their statistics.
-    Returns what was done: episodes, successful ones, cloned steps, the cloning loss at
-    its first and last epoch, and the seconds it took (they count in the run's
-    wall-clock)."""
+    Returns what was done (episodes, successful ones, cloned steps, the cloning loss at
+    its first and last epoch, and the seconds it took: they count in the run's
+    wall-clock) and the successful episodes' steps (``tasks.teacher.Demos``)."""
     from concurrent.futures import ProcessPoolExecutor
 
     from tasks.teacher import Demos, check_task, clone
@@ -638,7 +648,16 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> dict[str, Any]:
         "seconds": round(time.time() - t0, 1),
     }
     log.info("behaviour cloning on the teacher's episodes: %s", report)
-    return report
+    return report, demos
+
+
+def set_actor_trainable(model: Any, trainable: bool) -> None:
+    """Let PPO's updates move ``model``'s policy mean and log std, or not (then only the
+    value function learns: the critic's warm-up)."""
+    from tasks.teacher import actor_parameters
+
+    for p in [*actor_parameters(model.policy), model.policy.log_std]:
+        p.requires_grad_(trainable)
 
 
 def _collect_demos(args: Args, episodes: int, seed: int) -> Any:
@@ -775,6 +794,8 @@ def train(args: Args) -> dict[str, Any]:
     set_torch_threads(args.torch_threads)
     ckpt = Checkpoint(out / "checkpoint")
     resuming = args.resume and ckpt.exists()
+    if args.anchor_batches > 0 and args.demo_episodes <= 0 and not resuming:
+        raise ValueError("--anchor-batches keeps PPO near a clone: it needs --demo-episodes N")
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
@@ -813,8 +834,9 @@ def train(args: Args) -> dict[str, Any]:
         if args.gripper_log_std_init is not None:
             set_initial_log_std(model, -1, args.gripper_log_std_init)
         if args.demo_episodes > 0:
-            teacher = start_from_teacher(model, venv, args)
+            teacher, demos = start_from_teacher(model, venv, args)
             (out / "teacher.json").write_text(json.dumps(teacher, indent=2))
+            np.savez_compressed(out / "teacher_demos.npz", obs=demos.obs, actions=demos.actions)
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     if not resuming and eval_csv.exists():
@@ -889,6 +911,50 @@ def train(args: Args) -> dict[str, Any]:
             if last != self.num_timesteps:
                 self.run_eval()
 
+    class FromClone(BaseCallback):
+        """The critic's warm-up (the actor frozen until ``critic_warmup_steps``) and the
+        clone's anchor (``anchor_batches`` of behaviour cloning after each PPO update)."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.frozen = False
+            self.anchor = None
+            if args.anchor_batches > 0:
+                from tasks.teacher import CloneAnchor, Demos
+
+                path = out / "teacher_demos.npz"
+                if not path.is_file():
+                    raise FileNotFoundError(
+                        f"{path}: --anchor-batches needs the teacher's episodes "
+                        "(--demo-episodes N on a new run)"
+                    )
+                with np.load(path) as d:
+                    demos = Demos(d["obs"], d["actions"], np.zeros(len(d["obs"]), np.int64),
+                                  np.ones(1, bool))  # fmt: skip
+                self.anchor = CloneAnchor(
+                    model, demos, args.anchor_batches,
+                    learning_rate=args.anchor_learning_rate, seed=args.seed,
+                )  # fmt: skip
+
+        def _on_training_start(self) -> None:
+            if self.num_timesteps < args.critic_warmup_steps:
+                set_actor_trainable(self.model, False)
+                self.frozen = True
+                log.info(
+                    "critic warm-up: the actor is frozen until %d steps", args.critic_warmup_steps
+                )
+
+        def _on_rollout_start(self) -> None:
+            if self.frozen and self.num_timesteps >= args.critic_warmup_steps:
+                set_actor_trainable(self.model, True)
+                self.frozen = False
+                log.info("critic warm-up over at %d steps: the actor learns", self.num_timesteps)
+            if self.anchor is not None and not self.frozen and self.num_timesteps > 0:
+                self.logger.record("train/anchor_loss", self.anchor.step(current_norm()))
+
+        def _on_step(self) -> bool:
+            return True
+
     remaining = args.total_timesteps - model.num_timesteps
     finished = False
     try:
@@ -898,7 +964,7 @@ def train(args: Args) -> dict[str, Any]:
             ):
                 model.learn(
                     total_timesteps=remaining,
-                    callback=PeriodicEval(),
+                    callback=[PeriodicEval(), FromClone()],
                     reset_num_timesteps=not resuming,
                     progress_bar=args.progress_bar,
                 )

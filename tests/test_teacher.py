@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +92,83 @@ def test_clone_fits_the_policy_mean_to_the_demonstrated_actions() -> None:
     assert after < 0.02 < before
 
 
+def _flat_ppo():
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    class Flat(gym.Env):
+        observation_space = gym.spaces.Box(-np.inf, np.inf, (6,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            return self.observation_space.sample(), {}
+
+        def step(self, action):
+            reward = -float(np.sum(np.square(action)))  # something for the critic to learn
+            return self.observation_space.sample(), reward, False, False, {}
+
+    env = make_vec_env(Flat, 1, seed=0)
+    return PPO("MlpPolicy", env, n_steps=64, batch_size=32, n_epochs=2, seed=0,
+               policy_kwargs={"net_arch": [64, 64]})  # fmt: skip
+
+
+def test_the_anchor_pulls_a_drifted_clone_back_to_the_teacher() -> None:
+    import torch
+
+    from tasks.teacher import CloneAnchor, Demos, clone
+
+    model = _flat_ppo()
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(512, 6)).astype(np.float32)
+    actions = np.tanh(obs[:, :4] - 0.5 * obs[:, 2:]).astype(np.float32)
+    demos = Demos(obs, actions, np.arange(512) // 32, np.ones(16, bool))
+    clone(model, demos, epochs=150)
+
+    def error() -> float:
+        return float(np.mean((model.predict(obs, deterministic=True)[0] - actions) ** 2))
+
+    cloned = error()
+    with torch.no_grad():  # what PPO's drift might do to the mean action
+        model.policy.action_net.weight.add_(0.3 * torch.randn_like(model.policy.action_net.weight))
+    drifted = error()
+    value = [p.detach().clone() for p in model.policy.mlp_extractor.value_net.parameters()]
+    log_std = model.policy.log_std.detach().clone()
+    anchor = CloneAnchor(model, demos, batches=40, learning_rate=1e-3)
+    losses = [anchor.step() for _ in range(3)]
+    assert drifted > 5 * cloned and error() < 0.3 * drifted
+    assert losses[-1] < losses[0]
+    # only the mean action moves
+    assert torch.equal(model.policy.log_std, log_std)
+    for p, q in zip(model.policy.mlp_extractor.value_net.parameters(), value, strict=True):
+        assert torch.equal(p, q)
+    with pytest.raises(ValueError, match="batches"):
+        CloneAnchor(model, demos, batches=0)
+
+
+def test_a_frozen_actor_leaves_ppo_only_the_critic_to_train() -> None:
+    import torch
+
+    from tasks.teacher import actor_parameters
+    from tasks.train import set_actor_trainable
+
+    model = _flat_ppo()
+    policy = model.policy
+    actor = [p.detach().clone() for p in [*actor_parameters(policy), policy.log_std]]
+    critic = [p.detach().clone() for p in policy.mlp_extractor.value_net.parameters()]
+    set_actor_trainable(model, False)
+    model.learn(128)
+    after = [*actor_parameters(policy), policy.log_std]
+    assert all(torch.equal(p, q) for p, q in zip(after, actor, strict=True))
+    assert any(
+        not torch.equal(p, q)
+        for p, q in zip(policy.mlp_extractor.value_net.parameters(), critic, strict=True)
+    )
+    set_actor_trainable(model, True)
+    model.learn(128)
+    assert any(not torch.equal(p, q) for p, q in zip(after, actor, strict=True))
+
+
 def test_demos_keep_only_successful_episodes() -> None:
     from tasks.teacher import Demos
 
@@ -113,9 +191,10 @@ def test_ppo_starts_from_the_teachers_demonstrations(
 
     args = Args(
         env_id="OpenDrawer-v0", assets=str(procedural_assets), num_envs=1, vector="sync",
-        total_timesteps=0, eval_every=0, eval_episodes=1, eval_max_episode_steps=5,
-        video_episodes=0, progress_bar=False, out_dir=str(tmp_path / "run"),
-        demo_episodes=2, demo_workers=1, bc_epochs=20,
+        total_timesteps=256, n_steps=128, batch_size=128, eval_every=0, eval_episodes=1,
+        eval_max_episode_steps=5, video_episodes=0, progress_bar=False,
+        out_dir=str(tmp_path / "run"), demo_episodes=2, demo_workers=1, bc_epochs=20,
+        critic_warmup_steps=128, anchor_batches=2,
     )  # fmt: skip
     out = train(args)
     teacher = out["teacher"]
@@ -126,6 +205,21 @@ def test_ppo_starts_from_the_teachers_demonstrations(
     norm = ObsNorm.load(tmp_path / "run" / "obs_norm.npz")
     assert norm.mean[37] > 0.95 and norm.var[37] < 0.01
     assert (tmp_path / "run" / "teacher.json").is_file()
+    # PPO's first update only warms the critic up; the clone's anchor runs after the
+    # warm-up, between updates, on the demos kept beside the run
+    with open(tmp_path / "run" / "progress.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 and out["timesteps"] == 256
+    assert rows[0]["train/anchor_loss"] == "" and float(rows[1]["train/anchor_loss"]) >= 0
+    with np.load(tmp_path / "run" / "teacher_demos.npz") as d:
+        assert len(d["obs"]) == teacher["steps"] == len(d["actions"])
+
+
+def test_an_anchor_without_a_teacher_is_refused_before_any_env_starts(tmp_path: Path) -> None:
+    from tasks.train import Args, train
+
+    with pytest.raises(ValueError, match="demo-episodes"):
+        train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), anchor_batches=4))
 
 
 def test_the_teacher_refuses_other_tasks_and_controllers() -> None:
