@@ -985,6 +985,13 @@ def train(
         help="With --demo-episodes: minibatches of behaviour cloning on the teacher's steps "
         "between PPO's updates, so that PPO keeps the clone's grasps (0: none).",
     ),
+    update_obs_norm: bool = typer.Option(
+        True,
+        "--update-obs-norm/--fixed-obs-norm",
+        help="Update the observation normalization from PPO's rollouts, or keep the "
+        "statistics it starts with (with --demo-episodes: the teacher's, so that the "
+        "clone's inputs do not drift).",
+    ),
     critic_warmup_steps: int = typer.Option(
         0, help="Env steps at the start of PPO that train only the value function."
     ),
@@ -1028,6 +1035,7 @@ def train(
         log_std_init=log_std_init,
         anchor_batches=anchor_batches,
         critic_warmup_steps=critic_warmup_steps,
+        update_obs_norm=update_obs_norm,
         progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,

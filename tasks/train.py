@@ -125,6 +125,9 @@ class Args:
     load (tasks.articulated.PhysicsRandomization's ranges); evaluation never does"""
     normalize_obs: bool = True
     """running mean/std observation normalization, saved beside the policy (obs_norm.npz)"""
+    update_obs_norm: bool = True
+    """update the normalization's statistics from PPO's rollouts (False: keep those it
+    starts with, with demo_episodes the teacher's: a clone's inputs then do not drift)"""
     net_arch: list[int] = field(default_factory=lambda: [256, 256])
     """hidden layer widths of the policy and value MLPs"""
     seed: int = 0
@@ -805,6 +808,8 @@ def train(args: Args) -> dict[str, Any]:
             venv = VecNormalize.load(str(ckpt.normalizer), venv)
         else:
             venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=args.gamma)
+        # False: the statistics stay as they start (a clone's, from the teacher's episodes)
+        venv.training = args.update_obs_norm
     teacher: dict[str, Any] | None = None
     if resuming:
         model = PPO.load(

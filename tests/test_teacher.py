@@ -194,7 +194,7 @@ def test_ppo_starts_from_the_teachers_demonstrations(
         total_timesteps=256, n_steps=128, batch_size=128, eval_every=0, eval_episodes=1,
         eval_max_episode_steps=5, video_episodes=0, progress_bar=False,
         out_dir=str(tmp_path / "run"), demo_episodes=2, demo_workers=1, bc_epochs=20,
-        critic_warmup_steps=128, anchor_batches=2,
+        critic_warmup_steps=128, anchor_batches=2, update_obs_norm=False,
     )  # fmt: skip
     out = train(args)
     teacher = out["teacher"]
@@ -213,6 +213,8 @@ def test_ppo_starts_from_the_teachers_demonstrations(
     assert rows[0]["train/anchor_loss"] == "" and float(rows[1]["train/anchor_loss"]) >= 0
     with np.load(tmp_path / "run" / "teacher_demos.npz") as d:
         assert len(d["obs"]) == teacher["steps"] == len(d["actions"])
+        # the normalizer kept the teacher's statistics through PPO's 256 steps
+        assert np.allclose(norm.mean, d["obs"].mean(axis=0), atol=1e-5)
 
 
 def test_an_anchor_without_a_teacher_is_refused_before_any_env_starts(tmp_path: Path) -> None:
