@@ -92,14 +92,26 @@ def test_a_heavy_closed_mesh_is_presimplified_and_stays_closed(monkeypatch):
     assert seen == []
 
 
-def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse():
+def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse(monkeypatch):
+    import generator.mesh_repair.decimation as decimation
+
     # a cabinet's shell as a generator's marching cubes draws it: thin walls round a cavity
     grid = np.zeros((70, 50, 90), bool)
     grid[5:65, 5:45, 5:85] = True
     grid[8:62, 8:60, 8:82] = False  # open at the front
     shell = trimesh.voxel.VoxelGrid(grid).marching_cubes
     assert is_closed_volume(shell) and len(shell.faces) > 40_000
+    calls = []
+    real = decimation._meshlab_collapse
+    monkeypatch.setattr(
+        decimation,
+        "_meshlab_collapse",
+        lambda mesh, target, **kw: calls.append((len(mesh.faces), kw)) or real(mesh, target, **kw),
+    )
     out = decimate(shell, 3000)
+    # the fast path held: MeshLab ran once, on the pre-simplified mesh (1.5 x 3000 faces)
+    assert len(calls) == 1 and calls[0][1] == {"flip_t_vertices": True}
+    assert calls[0][0] <= 4500
     assert len(out.faces) <= 3000 and is_closed_volume(out) and (out.area_faces > 0).all()
     assert out.volume == pytest.approx(shell.volume, rel=0.03)
     near = trimesh.proximity.closest_point(shell, out.vertices)[1]
