@@ -997,8 +997,8 @@ def train(
     ),
     log_std_init: float = typer.Option(
         -2.0,
-        help="Initial log standard deviation of PPO's action noise (in the action's -1..1 "
-        "units); a clone of the teacher keeps closer to its grasps with less (-3.0).",
+        help="Initial log standard deviation of PPO's action noise, in the action's -1..1 "
+        "units (-2.0: 1.4 cm a step in pd_ee_delta_pos).",
     ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
