@@ -336,14 +336,15 @@ class CloneAnchor:
         total = 0.0
         for _ in range(self.batches):
             idx = torch.randint(len(self.demos.obs), (self.batch_size,), generator=self.gen)
-            obs = self.demos.obs[idx.numpy()]
+            idx = idx.numpy()
+            obs = self.demos.obs[idx]
             x = torch.as_tensor(
                 normalize(obs) if normalize is not None else obs,
                 dtype=torch.float32,
                 device=self.model.device,
             )
             y = torch.as_tensor(
-                self.demos.actions[idx.numpy()], dtype=torch.float32, device=self.model.device
+                self.demos.actions[idx], dtype=torch.float32, device=self.model.device
             )
             loss = torch.nn.functional.mse_loss(_mean_action(policy, x), y)
             self.opt.zero_grad()

@@ -205,8 +205,8 @@ def test_ppo_starts_from_the_teachers_demonstrations(
     norm = ObsNorm.load(tmp_path / "run" / "obs_norm.npz")
     assert norm.mean[37] > 0.95 and norm.var[37] < 0.01
     assert (tmp_path / "run" / "teacher.json").is_file()
-    # PPO's first update only warms the critic up; the clone's anchor runs after the
-    # warm-up, between updates, on the demos kept beside the run
+    # the clone's anchor runs once the critic's warm-up is over (128 steps: before the
+    # second update), between updates, on the demos kept beside the run
     with open(tmp_path / "run" / "progress.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 2 and out["timesteps"] == 256
