@@ -979,6 +979,12 @@ def train(
         help="Opening tasks: first clone the scripted teacher's successful episodes on the "
         "training assets (this many episodes; 0: PPO from scratch).",
     ),
+    dagger_rounds: int = typer.Option(
+        0,
+        help="With --demo-episodes: rounds of DAgger after the first clone (the clone's own "
+        "episodes, labelled by the teacher, added to what it is fitted to).",
+    ),
+    dagger_episodes: int = typer.Option(200, help="The clone's episodes per DAgger round."),
     learning_rate: float = typer.Option(3e-4, help="PPO's initial learning rate."),
     anchor_batches: int = typer.Option(
         0,
@@ -1031,6 +1037,8 @@ def train(
         lr_anneal_steps=lr_anneal_steps or None,
         randomize_physics=randomize_physics,
         demo_episodes=demo_episodes,
+        dagger_rounds=dagger_rounds,
+        dagger_episodes=dagger_episodes,
         learning_rate=learning_rate,
         log_std_init=log_std_init,
         anchor_batches=anchor_batches,

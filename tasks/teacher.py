@@ -25,6 +25,7 @@ observation.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,8 +63,8 @@ class OpeningTeacher:
     pull: float = 0.02
     """hand travel per control step while pulling a drawer"""
     door_pull: float = 0.05
-    """as ``pull``, doors (and pushing them): a door resists more, and the controller's
-    force grows with the commanded step"""
+    """as ``pull``, doors: a door resists more, and the controller's force grows with the
+    commanded step"""
     close_steps: int = 3
     """control steps the fingers get to close before pulling"""
     overshoot: float = 0.08
@@ -72,19 +73,35 @@ class OpeningTeacher:
     """a door whose opening grew less than 0.01 of its range over this many steps of
     pulling has stalled (the arm, its orientation fixed, can follow the handle no further)"""
     push_from: float = 0.15
-    """a stalled or lost door opened at least this fraction of its range is let go and
-    pushed on from inside, the hand going round its free edge"""
+    """a stalled door opened at least this fraction of its range is let go and pushed on
+    from inside, the hand going round its free edge"""
+    regrasp_below: float = 0.25
+    """a door whose handle the fingers lost below this fraction is grasped again (and
+    pushed on from inside above it)"""
     round_clear: float = 0.1
-    """how far past the handle (along the door, away from the hinge) and in front of it the
-    hand goes round the free edge"""
-    behind: float = 0.12
-    """how far behind the handle point the hand goes to reach the door's inner face"""
+    """how far in front of the handle the hand backs off before going round the free edge"""
+    edge_clear: float = 0.11
+    """how far past the door's free edge the hand goes round it (the Panda hand is about
+    0.2 m across its fingers' travel)"""
+    face_clear: float = 0.04
+    """how far behind the door's inner face the hand goes to push it from inside"""
+    inside_past_edge: float = 0.02
+    """where the hand goes behind the door and pushes from: this far past its free edge (the
+    hand's side pushes the edge; further in, the hand's body, fixed in orientation, would
+    catch the edge from the front and shut the door)"""
+    door_step: float = 0.07
+    """as ``step``, doors: reaching and going round"""
+    round_steps: int = 5
+    """control steps each leg of the way round gets (out of reach, the hand goes on)"""
+    door_push: float = 0.09
+    """hand travel per control step pushing a door from inside"""
 
     def __post_init__(self) -> None:
         self.reset()
 
     def reset(self) -> None:
         self.phase, self.t, self.opening = "approach", 0, []
+        self.extent: tuple[float, float] | None = None  # the door's, :func:`door_extent`
 
     def __call__(self, env: Any) -> np.ndarray:
         """The action for ``env`` (a ManiSkill ``ArticulatedPartEnv``, one sub-scene)."""
@@ -102,13 +119,20 @@ class OpeningTeacher:
         grasp = handle - axis * (self.recessed_depth if recessed else self.depth)
         gripper, move = (self.recessed_open if recessed else 1.0), np.zeros(3)
         door = u.episode_parts[0].joint_type == "revolute"
-        # a door's round trip to its inner face, in the door's current frame
-        out = _unit(handle - u.target_link.pose.p[0].cpu().numpy(), axis) if door else axis
+        # a door's round trip to its inner face, in the door's current frame: ``out`` points
+        # from the hinge line to the handle, the free edge is ``edge`` past the handle that
+        # way and the inner face ``face`` behind the handle point
+        out = _radial(u, handle) if door else axis
+        if door and self.extent is None:
+            self.extent = door_extent(u, handle, axis, out)
+        edge, face = self.extent if door else (0.0, 0.0)
+        past = edge + self.edge_clear
+        behind = face + self.face_clear
         round_path = {
             "back_off": handle + axis * self.round_clear,
-            "past_edge": handle + axis * self.round_clear + out * self.round_clear,
-            "behind": handle - axis * self.behind + out * self.round_clear,
-            "inside": handle - axis * self.behind - out * 0.03,
+            "past_edge": handle + axis * self.round_clear + out * past,
+            "behind": handle - axis * behind + out * past,
+            "inside": handle - axis * behind + out * (edge + self.inside_past_edge),
         }
         self.t += 1
         if self.phase == "approach":
@@ -132,28 +156,35 @@ class OpeningTeacher:
             stalled = len(self.opening) > self.stall_steps and (
                 frac - self.opening[-1 - self.stall_steps] < 0.01
             )
-            if door and frac < goal and frac >= self.push_from and (lost or stalled):
+            if (
+                door
+                and frac < goal
+                and ((stalled and frac >= self.push_from) or (lost and frac >= self.regrasp_below))
+            ):
                 self.phase, self.t = "back_off", 0
             elif frac < goal and lost:
                 self.phase, self.t = "retreat", 0
         elif self.phase in round_path:
             move = round_path[self.phase] - tcp
-            if np.linalg.norm(move) < 0.02 or self.t > 10:
+            if np.linalg.norm(move) < 0.02 or self.t > self.round_steps:
                 order = list(round_path)
                 nxt = order.index(self.phase) + 1
                 self.phase, self.t = (order[nxt] if nxt < len(order) else "push"), 0
         elif self.phase == "push":
-            # aim 0.06 m behind the handle point (the inner face is about 0.08 m behind
-            # it, past the handle's standoff and the panel) and move the way it opens
+            # stay just behind the inner face at the free edge and move the way it opens
             if frac < goal + self.overshoot:
-                target = handle - axis * (self.behind - 0.06) - out * 0.03
-                move = axis * self.door_pull + 0.5 * (target - tcp)
+                target = handle - axis * (face + 0.02) + out * (edge + self.inside_past_edge)
+                move = axis * self.door_push + 0.5 * (target - tcp)
         elif self.phase == "retreat":
             gripper = 1.0
             move = pre - tcp
             if np.linalg.norm(move) < 0.01 or self.t > 6:
                 self.phase, self.t = "approach", 0
-        norm, step = float(np.linalg.norm(move)), max(self.step, self.door_pull if door else 0.0)
+        if self.phase == "push":
+            step = self.door_push
+        else:
+            step = max(self.door_step, self.door_pull) if door else self.step
+        norm = float(np.linalg.norm(move))
         if norm > step:
             move = move * step / norm
         return (
@@ -177,10 +208,48 @@ def opening_direction(u: Any, handle: np.ndarray) -> np.ndarray:
     return tangent / max(float(np.linalg.norm(tangent)), 1e-9)
 
 
-def _unit(v: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """``v`` without its component along ``axis``, normalized."""
-    v = v - (v @ axis) * axis
-    return v / max(float(np.linalg.norm(v)), 1e-9)
+def _radial(u: Any, handle: np.ndarray) -> np.ndarray:
+    """(3,) unit world direction from a revolute target part's hinge line to its handle,
+    square to the hinge."""
+    hinge = u.joint_axis_world()[0].cpu().numpy()
+    arm = handle - u.target_link.pose.p[0].cpu().numpy()
+    arm = arm - (arm @ hinge) * hinge
+    return arm / max(float(np.linalg.norm(arm)), 1e-9)
+
+
+def door_extent(
+    u: Any, handle: np.ndarray, axis: np.ndarray, out: np.ndarray
+) -> tuple[float, float]:
+    """How far the target part's collision geometry reaches past its handle point: along
+    ``out`` (the free edge, away from the hinge) and against ``axis`` (the inner face,
+    behind the handle), in metres, each at least 0. Rigid with the part, so one reading
+    holds for the episode."""
+    points = _link_points(u.target_link)
+    if len(points) == 0:
+        return 0.05, 0.08
+    rel = points - handle
+    return max(float((rel @ out).max()), 0.0), max(float(-(rel @ axis).min()), 0.0)
+
+
+def _link_points(link: Any) -> np.ndarray:
+    """(N, 3) world corners of a ManiSkill link's convex and box collision shapes (its first
+    sub-scene's)."""
+    world = link.pose.to_transformation_matrix()[0].cpu().numpy()
+    rows = []
+    for shape in link._bodies[0].get_collision_shapes():
+        if hasattr(shape, "get_vertices"):
+            local = np.asarray(shape.get_vertices(), float) * np.asarray(shape.get_scale(), float)
+        elif hasattr(shape, "get_half_size"):
+            half = np.asarray(shape.get_half_size(), float)
+            local = half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        else:
+            continue
+        pose = shape.get_local_pose().to_transformation_matrix()
+        rows.append(local @ pose[:3, :3].T + pose[:3, 3])
+    if not rows:
+        return np.zeros((0, 3))
+    pts = np.concatenate(rows)
+    return pts @ world[:3, :3].T + world[:3, 3]
 
 
 def _world_to_base(v: np.ndarray, u: Any) -> np.ndarray:
@@ -243,6 +312,49 @@ def collect_demos(env: Any, episodes: int, seed: int = 50_000, action_noise: flo
         np.asarray(act_rows, np.float32),
         np.asarray(ep_rows, np.int64),
         np.asarray(success, bool),
+    )
+
+
+def collect_corrections(
+    env: Any, act: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int = 70_000
+) -> Demos:
+    """DAgger (Ross, Gordon and Bagnell, 2011): run a policy ``act`` (raw observation ->
+    action; the clone) on ``env`` for ``episodes`` episodes (episode k seeded ``seed + k``)
+    and label every state it visits with the teacher's action there. The teacher's phase
+    follows the states the policy leads it to (it reads the simulator at each step), so
+    the labels say how to go on from the clone's own mistakes, which the teacher's
+    episodes never reach. ``success`` is the policy's."""
+    obs_rows, act_rows, ep_rows, success = [], [], [], []
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed + k)
+        teacher, done, info = OpeningTeacher(), False, {}
+        while not done:
+            obs_rows.append(obs)
+            act_rows.append(teacher(env))
+            ep_rows.append(k)
+            obs, _, term, trunc, info = env.step(np.clip(act(obs), -1.0, 1.0))
+            done = term or trunc
+        success.append(bool(info.get("success", False)))
+    log.info("corrections: the policy succeeded in %d of %d episodes", sum(success), episodes)
+    return Demos(
+        np.asarray(obs_rows, np.float32),
+        np.asarray(act_rows, np.float32),
+        np.asarray(ep_rows, np.int64),
+        np.asarray(success, bool),
+    )
+
+
+def join_demos(*parts: Demos) -> Demos:
+    """Demos one after another, episode numbers made distinct."""
+    offset, pieces = 0, []
+    for d in parts:
+        pieces.append(Demos(d.obs, d.actions, d.episode + offset, d.success))
+        offset += len(d.success)
+    return Demos(
+        np.concatenate([d.obs for d in pieces]),
+        np.concatenate([d.actions for d in pieces]),
+        np.concatenate([d.episode for d in pieces]),
+        np.concatenate([d.success for d in pieces]),
     )
 
 

@@ -110,6 +110,12 @@ class Args:
     """processes collecting the teacher's episodes"""
     bc_epochs: int = 100
     """epochs of behaviour cloning on the teacher's successful episodes"""
+    dagger_rounds: int = 0
+    """with demo_episodes: rounds of DAgger after the first clone (tasks.teacher.
+    collect_corrections): the clone runs dagger_episodes episodes, the teacher labels the
+    states it visits, and the clone is fitted again to all steps so far"""
+    dagger_episodes: int = 200
+    """the clone's episodes per DAgger round"""
     anchor_batches: int = 0
     """with demo_episodes: minibatches of behaviour cloning on the teacher's successful steps
     between PPO's updates (tasks.teacher.CloneAnchor; 0: none), so that PPO improves the
@@ -603,38 +609,24 @@ def stop_on_sigterm() -> Iterator[None]:
 
 def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any], Any]:
     """Fit ``model``'s policy to the scripted teacher's successful episodes on the training
-    assets (tasks.teacher), and start the observation normalizer from their statistics.
-    Returns what was done (episodes, successful ones, cloned steps, the cloning loss at
-    its first and last epoch, and the seconds it took: they count in the run's
-    wall-clock) and the successful episodes' steps (``tasks.teacher.Demos``)."""
-    from concurrent.futures import ProcessPoolExecutor
+    assets (tasks.teacher), and start the observation normalizer from their statistics;
+    then ``args.dagger_rounds`` rounds of DAgger (the clone's episodes labelled by the
+    teacher, the clone fitted again to every step so far). Returns what was done (episodes,
+    successful ones, cloned steps, the cloning loss at its first and last epoch, each
+    DAgger round's episodes, the clone's success in them and its steps, and the seconds it
+    took: they count in the run's wall-clock) and the steps cloned (``tasks.teacher.Demos``)."""
+    import tempfile
 
-    from tasks.teacher import Demos, check_task, clone
+    from tasks.teacher import check_task, clone, join_demos
 
     check_task(args.env_id, args.control_mode)
-    workers = max(1, min(args.demo_workers, args.demo_episodes))
-    share = [
-        args.demo_episodes // workers + (i < args.demo_episodes % workers) for i in range(workers)
-    ]
-    seeds = [50_000 + sum(share[:i]) for i in range(workers)]
     t0 = time.time()
-    if workers == 1:
-        parts = [_collect_demos(args, share[0], seeds[0])]
-    else:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            parts = list(pool.map(_collect_demos, [args] * workers, share, seeds))
-    offset, pieces = 0, []
-    for d in parts:
-        pieces.append(Demos(d.obs, d.actions, d.episode + offset, d.success))
-        offset += len(d.success)
-    demos = Demos(
-        np.concatenate([d.obs for d in pieces]),
-        np.concatenate([d.actions for d in pieces]),
-        np.concatenate([d.episode for d in pieces]),
-        np.concatenate([d.success for d in pieces]),
-    ).successful()
+    collected = _in_workers(_collect_demos, args, args.demo_episodes, 50_000)
+    demos = collected.successful()
     if len(demos.obs) == 0:
-        raise RuntimeError(f"{args.assets}: the teacher opened no part in {offset} episodes")
+        raise RuntimeError(
+            f"{args.assets}: the teacher opened no part in {len(collected.success)} episodes"
+        )
     normalize = None
     if hasattr(venv, "obs_rms"):
         venv.obs_rms.mean = demos.obs.mean(axis=0).astype(np.float64)
@@ -642,16 +634,56 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
         venv.obs_rms.count = float(len(demos.obs))
         normalize = ObsNorm.from_vec_normalize(venv)
     losses = clone(model, demos, normalize, epochs=args.bc_epochs, seed=args.seed)
-    report = {
-        "episodes": offset,
+    report: dict[str, Any] = {
+        "episodes": len(collected.success),
         "successful": int(demos.success.sum()),
         "steps": len(demos.obs),
         "bc_loss_first": round(losses[0], 5),
         "bc_loss_last": round(losses[-1], 5),
-        "seconds": round(time.time() - t0, 1),
     }
+    rounds = []
+    for r in range(args.dagger_rounds):
+        with tempfile.TemporaryDirectory() as tmp:
+            policy_zip = str(Path(tmp) / "clone.zip")
+            model.save(policy_zip)
+            seed = 70_000 + r * args.dagger_episodes
+            fixes = _in_workers(
+                _collect_corrections, args, args.dagger_episodes, seed, policy_zip, normalize
+            )
+        demos = join_demos(demos, fixes)
+        losses = clone(model, demos, normalize, epochs=args.bc_epochs, seed=args.seed + r + 1)
+        rounds.append(
+            {
+                "episodes": len(fixes.success),
+                "clone_success": round(float(fixes.success.mean()), 4),
+                "steps": len(fixes.obs),
+                "bc_loss_last": round(losses[-1], 5),
+            }
+        )
+        log.info("DAgger round %d: %s", r + 1, rounds[-1])
+    if rounds:
+        report["dagger"] = rounds
+    report["seconds"] = round(time.time() - t0, 1)
     log.info("behaviour cloning on the teacher's episodes: %s", report)
     return report, demos
+
+
+def _in_workers(collect: Any, args: Args, episodes: int, seed: int, *extra: Any) -> Any:
+    """``collect(args, n, seed_i, *extra)`` in ``args.demo_workers`` processes, the
+    ``episodes`` shared out and seeded one after another; their Demos joined."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tasks.teacher import join_demos
+
+    workers = max(1, min(args.demo_workers, episodes))
+    share = [episodes // workers + (i < episodes % workers) for i in range(workers)]
+    seeds = [seed + sum(share[:i]) for i in range(workers)]
+    if workers == 1:
+        return collect(args, share[0], seeds[0], *extra)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        n = len(share)
+        parts = list(pool.map(collect, [args] * n, share, seeds, *[[e] * n for e in extra]))
+    return join_demos(*parts)
 
 
 def set_actor_trainable(model: Any, trainable: bool) -> None:
@@ -669,15 +701,40 @@ def _collect_demos(args: Args, episodes: int, seed: int) -> Any:
     from tasks.teacher import collect_demos
 
     set_torch_threads(args.torch_threads)
-    env = make_cpu_env(
-        args.env_id, args.assets, category=args.category, control_mode=args.control_mode,
-        sim_config={"control_freq": args.control_freq}, reconfiguration_freq=1,
-        **eval_episode_steps(args.env_id, None, args.control_freq),
-    )  # fmt: skip
+    env = _teacher_env(args)
     try:
         return collect_demos(env, episodes, seed=seed)
     finally:
         env.close()
+
+
+def _collect_corrections(
+    args: Args, episodes: int, seed: int, policy_zip: str, normalize: ObsNorm | None
+) -> Any:
+    """The clone saved at ``policy_zip`` run on the training assets as in
+    :func:`_collect_demos`, the teacher labelling its states (DAgger)."""
+    from stable_baselines3 import PPO
+
+    from tasks.teacher import collect_corrections
+
+    set_torch_threads(args.torch_threads)
+    model = PPO.load(policy_zip, device="cpu")
+    norm = normalize or (lambda o: o)
+    env = _teacher_env(args)
+    try:
+        return collect_corrections(
+            env, lambda o: model.predict(norm(o), deterministic=True)[0], episodes, seed=seed
+        )
+    finally:
+        env.close()
+
+
+def _teacher_env(args: Args) -> gym.Env:
+    return make_cpu_env(
+        args.env_id, args.assets, category=args.category, control_mode=args.control_mode,
+        sim_config={"control_freq": args.control_freq}, reconfiguration_freq=1,
+        **eval_episode_steps(args.env_id, None, args.control_freq),
+    )  # fmt: skip
 
 
 def learning_rate_schedule(args: Args) -> Any:
@@ -799,6 +856,10 @@ def train(args: Args) -> dict[str, Any]:
     resuming = args.resume and ckpt.exists()
     if args.anchor_batches > 0 and args.demo_episodes <= 0 and not resuming:
         raise ValueError("--anchor-batches keeps PPO near a clone: it needs --demo-episodes N")
+    if args.dagger_rounds > 0 and args.demo_episodes <= 0 and not resuming:
+        raise ValueError(
+            "--dagger-rounds refines a clone of the teacher: it needs --demo-episodes N"
+        )
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)

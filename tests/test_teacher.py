@@ -63,6 +63,35 @@ def test_teacher_opens_side_and_bottom_hinged_doors(procedural_assets: Path) -> 
     assert opened == {"side_door": True, "bottom_door": True}
 
 
+def test_door_extent_of_a_panel_matches_the_hand_computed_edge_and_face() -> None:
+    """A door panel 2 cm thick and 0.6 m wide, hinged on the world z axis at the origin
+    (box collision shape, link frame on the hinge), its handle 4 cm in front of the panel's
+    outer face and 5 cm from its free edge: the free edge is 0.05 m past the handle, the
+    inner face 0.06 m behind it."""
+    from types import SimpleNamespace
+
+    import sapien
+    import torch
+
+    from tasks.teacher import door_extent
+
+    class Box:  # a collision box as SAPIEN's, by duck typing: half size and local pose
+        def get_half_size(self):
+            return np.array([0.01, 0.3, 0.5])
+
+        def get_local_pose(self):
+            return sapien.Pose([-0.01, 0.3, 0.0])
+
+    pose = SimpleNamespace(to_transformation_matrix=lambda: torch.eye(4)[None])
+    link = SimpleNamespace(
+        pose=pose, _bodies=[SimpleNamespace(get_collision_shapes=lambda: [Box()])]
+    )
+    u = SimpleNamespace(target_link=link)
+    handle = np.array([0.04, 0.55, 0.0])
+    edge, face = door_extent(u, handle, axis=np.array([1.0, 0, 0]), out=np.array([0, 1.0, 0]))
+    assert edge == pytest.approx(0.05) and face == pytest.approx(0.06)
+
+
 def test_clone_fits_the_policy_mean_to_the_demonstrated_actions() -> None:
     import gymnasium as gym
     from stable_baselines3 import PPO
@@ -217,11 +246,59 @@ def test_ppo_starts_from_the_teachers_demonstrations(
         assert np.allclose(norm.mean, d["obs"].mean(axis=0), atol=1e-5)
 
 
-def test_an_anchor_without_a_teacher_is_refused_before_any_env_starts(tmp_path: Path) -> None:
+def test_corrections_label_the_policys_own_states_with_the_teachers_actions(
+    procedural_assets: Path,
+) -> None:
+    """DAgger's data: a policy that never moves leaves the hand where it starts, and every
+    state it visits is labelled with what the teacher would do there (reach for the
+    handle), not with what the policy did."""
+    from tasks.teacher import OpeningTeacher, collect_corrections
+    from tasks.train import make_cpu_env
+
+    env = make_cpu_env(
+        "OpenDrawer-v0", str(procedural_assets), control_mode="pd_ee_delta_pos",
+        sim_config={"control_freq": 10}, max_episode_steps=12,
+    )  # fmt: skip
+    try:
+        still = collect_corrections(env, lambda o: np.zeros(4, np.float32), 1, seed=10_000)
+        env.reset(seed=10_000)
+        first = OpeningTeacher()(env)
+    finally:
+        env.close()
+    assert len(still.obs) == 12 and not still.success[0]
+    assert np.allclose(still.actions[0], first)
+    # the teacher keeps asking for the same reach: the hand never got nearer
+    reach = np.linalg.norm(still.actions[:, :3], axis=1)
+    assert reach.min() > 0.1 and np.allclose(still.actions[-1, :3], first[:3], atol=0.05)
+
+
+def test_dagger_rounds_add_the_clones_labelled_states_to_what_it_is_fitted_to(
+    procedural_assets: Path, tmp_path: Path
+) -> None:
+    from tasks.train import Args, train
+
+    args = Args(
+        env_id="OpenDrawer-v0", assets=str(procedural_assets), num_envs=1, vector="sync",
+        total_timesteps=0, eval_every=0, eval_episodes=1, eval_max_episode_steps=5,
+        video_episodes=0, progress_bar=False, out_dir=str(tmp_path / "run"), demo_episodes=2,
+        demo_workers=1, bc_epochs=5, dagger_rounds=1, dagger_episodes=1,
+    )  # fmt: skip
+    teacher = train(args)["teacher"]
+    (fixes,) = teacher["dagger"]
+    assert fixes["episodes"] == 1 and fixes["steps"] == 50  # one 5-s drawer episode
+    with np.load(tmp_path / "run" / "teacher_demos.npz") as d:
+        assert len(d["obs"]) == teacher["steps"] + fixes["steps"]
+
+
+def test_an_anchor_or_dagger_without_a_teacher_is_refused_before_any_env_starts(
+    tmp_path: Path,
+) -> None:
     from tasks.train import Args, train
 
     with pytest.raises(ValueError, match="demo-episodes"):
         train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), anchor_batches=4))
+    with pytest.raises(ValueError, match="demo-episodes"):
+        train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), dagger_rounds=1))
 
 
 def test_the_teacher_refuses_other_tasks_and_controllers() -> None:

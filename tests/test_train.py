@@ -349,9 +349,11 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
         app,
         [*base, "--lr-anneal-steps", "950000", "--randomize-physics",
          "--demo-episodes", "300", "--learning-rate", "1e-4", "--log-std-init", "-3",
-         "--anchor-batches", "10", "--critic-warmup-steps", "20000", "--fixed-obs-norm"],
+         "--anchor-batches", "10", "--critic-warmup-steps", "20000", "--fixed-obs-norm",
+         "--dagger-rounds", "2", "--dagger-episodes", "50"],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
+    assert seen[-1].dagger_rounds == 2 and seen[-1].dagger_episodes == 50
     assert seen[-1].log_std_init == pytest.approx(-3.0)
     assert seen[-1].anchor_batches == 10 and seen[-1].critic_warmup_steps == 20_000
     assert not seen[-1].update_obs_norm
@@ -362,5 +364,6 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
     assert seen[-1].demo_episodes == 0 and seen[-1].learning_rate == pytest.approx(3e-4)
     assert seen[-1].log_std_init == pytest.approx(tasks.train.Args().log_std_init)
     assert seen[-1].update_obs_norm and seen[-1].anchor_batches == 0
+    assert seen[-1].dagger_rounds == 0
     assert res.exit_code == 128 + signal.SIGTERM
     assert "stopped by SIGTERM" in res.output
