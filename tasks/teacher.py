@@ -139,7 +139,10 @@ class OpeningTeacher:
             lined_up = np.linalg.norm(lateral) <= 0.01 or along >= -0.02
             move = (grasp if lined_up else pre) - tcp
             gap = float(np.linalg.norm(grasp - tcp))
-            if gap < 0.008 or (self.t > 12 and gap < 0.02):
+            # a door's recessed pull may be shallower than recessed_depth: the hand stops
+            # at the door short of the grasp point, and closes there
+            near = 0.008 + (self.recessed_depth if door and recessed else 0.0)
+            if gap < near or (self.t > 12 and gap < 0.02):
                 self.phase, self.t = "close", 0
         elif self.phase == "close":
             gripper = -1.0

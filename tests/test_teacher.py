@@ -63,6 +63,34 @@ def test_teacher_opens_side_and_bottom_hinged_doors(procedural_assets: Path) -> 
     assert opened == {"side_door": True, "bottom_door": True}
 
 
+def test_teacher_grasps_a_dishwashers_recessed_pull_and_opens_it(tmp_path: Path) -> None:
+    """A dishwasher door's pull recessed less deep than the teacher's grasp point: the hand
+    stops at the door short of that point, closes there and opens the door (it used to
+    wait in front of it for the whole episode)."""
+    from asset_pipeline.assets.build import build_asset
+    from generator.bundle import save_bundle
+    from generator.procedural import object_id, sample_object
+    from tasks.teacher import OpeningTeacher
+    from tasks.train import eval_episode_steps, make_cpu_env
+
+    build_asset(save_bundle(sample_object("dishwasher", 0), tmp_path / object_id("dishwasher", 0)))
+    env = make_cpu_env(
+        "OpenDoor-v0", str(tmp_path), control_mode="pd_ee_delta_pos",
+        sim_config={"control_freq": 10}, **eval_episode_steps("OpenDoor-v0", None, 10),
+    )  # fmt: skip
+    try:
+        env.reset(seed=10_000)
+        assert env.unwrapped.episode_parts[0].handle_kind == "recessed"
+        teacher, done, info, phases = OpeningTeacher(), False, {}, set()
+        while not done:
+            _, _, term, trunc, info = env.step(teacher(env))
+            phases.add(teacher.phase)
+            done = term or trunc
+    finally:
+        env.close()
+    assert "pull" in phases and info["success"]
+
+
 def test_door_extent_of_a_panel_matches_the_hand_computed_edge_and_face() -> None:
     """A door panel 2 cm thick and 0.6 m wide, hinged on the world z axis at the origin
     (box collision shape, link frame on the hinge), its handle 4 cm in front of the panel's
