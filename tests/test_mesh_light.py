@@ -118,6 +118,38 @@ def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse(
     assert near.max() < 1.0  # within a voxel of the surface
 
 
+def test_a_wall_folded_flat_by_the_pre_pass_keeps_the_fast_path(monkeypatch):
+    from scipy import ndimage
+
+    import generator.mesh_repair.decimation as decimation
+
+    # a lumpy closed solid (a smoothed noise field, its largest piece): meshoptimizer's
+    # collapse to 9,000 faces folds a thin wall flat into two faces on the same three
+    # vertices, which leaves the surface open until the pair is dropped
+    noise = ndimage.gaussian_filter(np.random.default_rng(1).normal(size=(48, 48, 48)), 3)
+    grid = noise > 0.02
+    grid[[0, 1, -2, -1]] = grid[:, [0, 1, -2, -1]] = grid[:, :, [0, 1, -2, -1]] = False
+    labels, _ = ndimage.label(grid)
+    solid = ndimage.binary_fill_holes(labels == np.argmax(np.bincount(labels.ravel())[1:]) + 1)
+    lumpy = trimesh.voxel.VoxelGrid(solid).marching_cubes
+    assert is_closed_volume(lumpy)
+    pairs = np.array([[0, 1, 2], [3, 4, 5], [2, 1, 0], [1, 2, 0], [5, 4, 3]])
+    assert decimation._drop_folded_pairs(pairs).tolist() == []
+    assert decimation._drop_folded_pairs(pairs[:2]).tolist() == [[0, 1, 2], [3, 4, 5]]
+    calls = []
+    real = decimation._meshlab_collapse
+    monkeypatch.setattr(
+        decimation,
+        "_meshlab_collapse",
+        lambda mesh, target, **kw: calls.append((len(mesh.faces), kw)) or real(mesh, target, **kw),
+    )
+    out = decimate(lumpy, 6000)
+    # MeshLab ran once, on the pre-simplified mesh: no fall-back to MeshLab alone
+    assert len(calls) == 1 and calls[0][1] == {"flip_t_vertices": True} and calls[0][0] <= 9000
+    assert len(out.faces) <= 6000 and is_closed_volume(out) and (out.area_faces > 0).all()
+    assert out.volume == pytest.approx(lumpy.volume, rel=0.01)
+
+
 def test_decimate_keeps_a_texture_and_its_mapping():
     m = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
     # texture: left half (y < 0) red, right half blue, mapped by the y coordinate

@@ -17,7 +17,9 @@ triangle) by quadric edge collapse (MeshLab, through ``pymeshlab``):
   than MeshLab's: a marching-cubes base of 226,000 triangles to 47,000 in 1.5-1.7 s
   instead of 4.2-5.4 s in all, its mean distance to the original 0.11 mm on a metre-tall
   object instead of 0.19 mm), kept only when it is still closed: that collapse does not guard
-  the topology (it may pinch two sheets into a non-manifold edge), MeshLab's
+  the topology (it may pinch two sheets into a non-manifold edge; a thin wall it folds
+  flat, two faces on the same three vertices, is dropped, and a vertex where the surface
+  then touches itself is split before MeshLab's collapse), MeshLab's
   topology-keeping collapse does the rest, and the result is kept only when it is closed
   without a zero-area face (else MeshLab alone on the mesh);
 - a textured mesh (an artist's texture, a baked photo) is collapsed by MeshLab's
@@ -83,10 +85,20 @@ def _is_textured(mesh: trimesh.Trimesh) -> bool:
     return mesh.visual.kind == "texture" and uv is not None and len(uv) == len(mesh.vertices)
 
 
+def _drop_folded_pairs(faces: np.ndarray) -> np.ndarray:
+    """``faces`` (F, 3) without the faces whose three vertices another face also has: where
+    a collapse folds a thin wall flat, two faces on the same vertices, facing apart, make
+    a zero-volume pocket whose edges four faces share; without the pair the surface
+    round it is closed again (touching itself at a vertex at most)."""
+    key = np.sort(faces, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return faces[counts[inverse.reshape(-1)] == 1]
+
+
 def _presimplify(mesh: trimesh.Trimesh, target: int) -> trimesh.Trimesh | None:
     """``mesh`` (closed, untextured) with about ``target`` triangles by meshoptimizer's
-    edge collapse onto existing vertices (vertex colours kept by index), or None when the
-    result is not closed any more."""
+    edge collapse onto existing vertices (vertex colours kept by index), its folded face
+    pairs dropped (:func:`_drop_folded_pairs`), or None when the result is not closed."""
     import meshoptimizer
 
     indices = np.ascontiguousarray(mesh.faces, np.uint32).reshape(-1)
@@ -98,7 +110,7 @@ def _presimplify(mesh: trimesh.Trimesh, target: int) -> trimesh.Trimesh | None:
         target_index_count=3 * int(target),
         target_error=1.0,  # relative to the mesh's size: the triangle count decides
     )
-    faces = out[:n].reshape(-1, 3).astype(np.int64)
+    faces = _drop_folded_pairs(out[:n].reshape(-1, 3).astype(np.int64))
     used = np.unique(faces)
     remap = np.full(len(mesh.vertices), -1, np.int64)
     remap[used] = np.arange(len(used))
@@ -146,6 +158,9 @@ def _meshlab_collapse(
         )
     )
     if flip_t_vertices:
+        # where the pre-pass left the surface touching itself at a vertex, the vertex is
+        # split (one per fan of faces round it; MeshLab's filters refuse such a mesh)
+        ms.meshing_repair_non_manifold_vertices(vertdispratio=0)
         ms.meshing_remove_t_vertices(method=1, threshold=40, repeat=True)  # 1: edge flips
     ms.meshing_decimation_quadric_edge_collapse(
         targetfacenum=int(target),
