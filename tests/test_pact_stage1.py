@@ -370,7 +370,7 @@ def test_vae_shapes_and_overfits_a_few_grids():
     opt = torch.optim.Adam(vae.parameters(), lr=3e-3)
     cfg = SSVAETrainConfig(kl_weight=1e-4)
     g = torch.Generator().manual_seed(0)
-    for _ in range(400):
+    for _ in range(300):
         loss, metrics = vae_loss(vae.train(), occ, cfg, g)
         opt.zero_grad()
         loss.backward()
