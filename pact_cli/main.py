@@ -1006,6 +1006,12 @@ def train(
         help="Initial log standard deviation of PPO's action noise, in the action's -1..1 "
         "units (-2.0: 1.4 cm a step in pd_ee_delta_pos).",
     ),
+    robot_frame_obs: bool = typer.Option(
+        True,
+        "--robot-frame-obs/--no-robot-frame-obs",
+        help="Also observe the hand-to-handle vector, the joint axis and a door's "
+        "hinge-to-handle vector along the robot base's axes (docs/tasks.md).",
+    ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar."),
     sim_backend: str = typer.Option("physx_cpu", help="physx_cpu or physx_cuda."),
     out: str = typer.Option(
@@ -1044,6 +1050,7 @@ def train(
         anchor_batches=anchor_batches,
         critic_warmup_steps=critic_warmup_steps,
         update_obs_norm=update_obs_norm,
+        robot_frame_obs=robot_frame_obs,
         progress_bar=progress,
         sim_backend=sim_backend,
         out_dir=out,

@@ -131,6 +131,7 @@ class ArticulatedPartEnv(BaseEnv):
         robot_pos_noise: float = 0.02,
         near_start_prob: float = 0.0,
         require_grasp: bool = False,
+        robot_frame_obs: bool = False,
         physics_randomization: PhysicsRandomization | None = None,
         sim_options: SimOptions = DEFAULT_SIM_OPTIONS,
         reconfiguration_freq: int | None = None,
@@ -148,6 +149,7 @@ class ArticulatedPartEnv(BaseEnv):
             raise ValueError("near_start_prob applies to the drawer opening task only")
         self.near_start_prob = float(near_start_prob)
         self.require_grasp = bool(require_grasp)
+        self.robot_frame_obs = bool(robot_frame_obs)
         self.physics_randomization = physics_randomization
         self.sim_options = sim_options
         if reconfiguration_freq is None:
@@ -309,6 +311,7 @@ class ArticulatedPartEnv(BaseEnv):
         self.qrange = self.qhigh - self.qlow
         self.start_fraction = torch.zeros(n, device=self.device)
         self.object_yaw = torch.zeros(n, device=self.device)
+        self.robot_yaw = torch.zeros(n, device=self.device)
         self._merged_target: dict[tuple[int, ...], Link] = {}
 
     def _placement(
@@ -398,6 +401,7 @@ class ArticulatedPartEnv(BaseEnv):
             if self.near_start_prob > 0:
                 base = base + self._near_start_shift(robot_yaw)
             self.agent.robot.set_pose(Pose.create_from_pq(p=base, q=yaw_quat(robot_yaw)))
+            self.robot_yaw[env_idx] = robot_yaw
             rq = self._slot_qstart[env_idx, slot].clone()
             rq[:, :7] += torch.randn((b, 7)) * self.robot_init_qpos_noise
             self.agent.robot.set_qpos(rq)
@@ -438,6 +442,13 @@ class ArticulatedPartEnv(BaseEnv):
 
     def joint_axis_world(self) -> torch.Tensor:
         return rotate_z(self.joint_axis_obj, self.object_yaw)
+
+    def hinge_to_handle(self) -> torch.Tensor:
+        """(N, 3) world vector from a revolute target part's hinge line to its handle,
+        square to the hinge (the target link's origin lies on the hinge)."""
+        axis = self.joint_axis_world()
+        arm = self.handle_positions() - self.target_link.pose.p
+        return arm - (arm * axis).sum(1, keepdim=True) * axis
 
     def evaluate(self) -> dict[str, torch.Tensor]:
         frac = self.open_fraction()
@@ -513,6 +524,16 @@ class ArticulatedPartEnv(BaseEnv):
                 joint_axis=self.joint_axis_world(),
                 handle_kind=self.handle_kind,
             )
+            if self.robot_frame_obs:
+                # the same vectors along the robot base's axes, the axes its actions move
+                # the hand along (pd_ee_delta_pos), and for a door where its hinge is
+                inv = -self.robot_yaw
+                obs.update(
+                    tcp_to_handle_robot=rotate_z(info["tcp_to_handle"], inv),
+                    joint_axis_robot=rotate_z(self.joint_axis_world(), inv),
+                )
+                if self.joint_type == "revolute":
+                    obs["hinge_to_handle_robot"] = rotate_z(self.hinge_to_handle(), inv)
         return obs
 
     def progress(self, info: dict) -> torch.Tensor:

@@ -30,7 +30,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -102,6 +102,10 @@ class Args:
     """OpenDrawer-v0: share of training episodes starting with fingers round the handle"""
     require_grasp: bool = True
     """dense reward's grasp term only for a real grasp, not a hook (False: the env's)"""
+    robot_frame_obs: bool = True
+    """observe the hand-to-handle vector, the joint axis and a door's hinge-to-handle vector
+    along the robot base's axes too (the env's ``robot_frame_obs``; a saved run without
+    it in its args.json was trained without them)"""
     demo_episodes: int = 0
     """OpenDrawer-v0, OpenDoor-v0: episodes of the scripted teacher (tasks.teacher) on the
     training assets whose actions the policy is fitted to before PPO starts (0: PPO from
@@ -279,6 +283,7 @@ def _env_fn(args: Args, rank: int):
             sim_config={"control_freq": args.control_freq},
             near_start_prob=args.near_start_prob,
             require_grasp=args.require_grasp,
+            robot_frame_obs=args.robot_frame_obs,
             physics_randomization=physics_randomization(args),
         )
 
@@ -398,6 +403,7 @@ def make_train_env(args: Args):
         reconfiguration_freq=0,  # each sub-scene keeps its asset; parts are re-sampled
         near_start_prob=args.near_start_prob,
         require_grasp=args.require_grasp,
+        robot_frame_obs=args.robot_frame_obs,
         physics_randomization=physics_randomization(args),
     )
     return ManiSkillSB3VectorEnv(env)
@@ -468,6 +474,7 @@ def evaluate(
         obs_norm = obs_norm or saved_norm
         if "control_mode" in saved:
             env_kwargs.setdefault("control_mode", saved["control_mode"])
+        env_kwargs.setdefault("robot_frame_obs", bool(saved.get("robot_frame_obs", False)))
         freq = int(saved.get("control_freq", 20))
         if freq != 20:
             env_kwargs.setdefault("sim_config", {"control_freq": freq})
@@ -733,6 +740,7 @@ def _teacher_env(args: Args) -> gym.Env:
     return make_cpu_env(
         args.env_id, args.assets, category=args.category, control_mode=args.control_mode,
         sim_config={"control_freq": args.control_freq}, reconfiguration_freq=1,
+        robot_frame_obs=args.robot_frame_obs,
         **eval_episode_steps(args.env_id, None, args.control_freq),
     )  # fmt: skip
 
@@ -854,6 +862,10 @@ def train(args: Args) -> dict[str, Any]:
     set_torch_threads(args.torch_threads)
     ckpt = Checkpoint(out / "checkpoint")
     resuming = args.resume and ckpt.exists()
+    if resuming and (out / "args.json").is_file():
+        # a run started before the robot-frame observations goes on without them
+        saved = json.loads((out / "args.json").read_text())
+        args = replace(args, robot_frame_obs=bool(saved.get("robot_frame_obs", False)))
     if args.anchor_batches > 0 and args.demo_episodes <= 0 and not resuming:
         raise ValueError("--anchor-batches keeps PPO near a clone: it needs --demo-episodes N")
     if args.dagger_rounds > 0 and args.demo_episodes <= 0 and not resuming:
@@ -916,6 +928,7 @@ def train(args: Args) -> dict[str, Any]:
     eval_kwargs: dict[str, Any] = dict(
         category=args.category,
         control_mode=args.control_mode,
+        robot_frame_obs=args.robot_frame_obs,
         sim_config={"control_freq": args.control_freq},
         **eval_episode_steps(args.env_id, args.eval_max_episode_steps, args.control_freq),
     )

@@ -184,6 +184,43 @@ def test_state_obs_carries_the_target_handle_kind(procedural_assets: Path) -> No
         env.close()
 
 
+def test_robot_frame_obs_are_the_world_vectors_along_the_robot_base_axes(
+    procedural_assets: Path,
+) -> None:
+    """``robot_frame_obs=True``: the hand-to-handle vector and the joint axis turned into
+    the robot base's frame, and for a door the vector from its hinge line to its handle
+    (square to the hinge, ending on it); off by default."""
+    env = _make("OpenDoor-v0", procedural_assets, obs_mode="state_dict", robot_frame_obs=True)
+    try:
+        for seed in range(4):
+            obs, _ = env.reset(seed=seed)
+            u, extra = env.unwrapped, {k: v[0].numpy() for k, v in obs["extra"].items()}
+            base = u.agent.robot.pose.to_transformation_matrix()[0, :3, :3].numpy()
+            np.testing.assert_allclose(
+                base @ extra["tcp_to_handle_robot"], extra["tcp_to_handle"], atol=1e-5
+            )
+            axis = extra["joint_axis"]
+            np.testing.assert_allclose(base @ extra["joint_axis_robot"], axis, atol=1e-5)
+            arm = base @ extra["hinge_to_handle_robot"]
+            assert abs(arm @ axis) < 1e-5 and np.linalg.norm(arm) > 0.05
+            on_hinge = extra["handle_pos"] - arm - u.target_link.pose.p[0].numpy()
+            assert np.linalg.norm(np.cross(on_hinge, axis)) < 1e-4
+    finally:
+        env.close()
+    env = _make("OpenDrawer-v0", procedural_assets, obs_mode="state_dict", robot_frame_obs=True)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert "tcp_to_handle_robot" in obs["extra"] and "hinge_to_handle_robot" not in obs["extra"]
+    finally:
+        env.close()
+    env = _make("OpenDoor-v0", procedural_assets, obs_mode="state_dict")
+    try:
+        obs, _ = env.reset(seed=0)
+        assert not [k for k in obs["extra"] if k.endswith("_robot")]
+    finally:
+        env.close()
+
+
 def test_robot_placement_keeps_door_path_in_reach(procedural_assets: Path) -> None:
     from sim_envs import FolderSource
     from tasks.placement import REACH, SHOULDER_HEIGHT, handle_path, robot_base_for_part
