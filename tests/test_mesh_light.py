@@ -92,22 +92,28 @@ def test_a_heavy_closed_mesh_is_presimplified_and_stays_closed(monkeypatch):
     assert seen == []
 
 
-def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse(monkeypatch):
+def _meshlab_calls(monkeypatch) -> list[tuple[int, dict]]:
+    """(faces in, keyword arguments) of each MeshLab collapse the decimation runs."""
     import generator.mesh_repair.decimation as decimation
 
-    # a cabinet's shell as a generator's marching cubes draws it: thin walls round a cavity
-    grid = np.zeros((70, 50, 90), bool)
-    grid[5:65, 5:45, 5:85] = True
-    grid[8:62, 8:60, 8:82] = False  # open at the front
-    shell = trimesh.voxel.VoxelGrid(grid).marching_cubes
-    assert is_closed_volume(shell) and len(shell.faces) > 40_000
-    calls = []
+    calls: list[tuple[int, dict]] = []
     real = decimation._meshlab_collapse
     monkeypatch.setattr(
         decimation,
         "_meshlab_collapse",
         lambda mesh, target, **kw: calls.append((len(mesh.faces), kw)) or real(mesh, target, **kw),
     )
+    return calls
+
+
+def test_a_marching_cubes_shell_stays_closed_through_the_presimplified_collapse(monkeypatch):
+    # a cabinet's shell as a generator's marching cubes draws it: thin walls round a cavity
+    grid = np.zeros((70, 50, 90), bool)
+    grid[5:65, 5:45, 5:85] = True
+    grid[8:62, 8:60, 8:82] = False  # open at the front
+    shell = trimesh.voxel.VoxelGrid(grid).marching_cubes
+    assert is_closed_volume(shell) and len(shell.faces) > 40_000
+    calls = _meshlab_calls(monkeypatch)
     out = decimate(shell, 3000)
     # the fast path held: MeshLab ran once, on the pre-simplified mesh (1.5 x 3000 faces)
     assert len(calls) == 1 and calls[0][1] == {"flip_t_vertices": True}
@@ -136,13 +142,7 @@ def test_a_wall_folded_flat_by_the_pre_pass_keeps_the_fast_path(monkeypatch):
     pairs = np.array([[0, 1, 2], [3, 4, 5], [2, 1, 0], [1, 2, 0], [5, 4, 3]])
     assert decimation._drop_folded_pairs(pairs).tolist() == []
     assert decimation._drop_folded_pairs(pairs[:2]).tolist() == [[0, 1, 2], [3, 4, 5]]
-    calls = []
-    real = decimation._meshlab_collapse
-    monkeypatch.setattr(
-        decimation,
-        "_meshlab_collapse",
-        lambda mesh, target, **kw: calls.append((len(mesh.faces), kw)) or real(mesh, target, **kw),
-    )
+    calls = _meshlab_calls(monkeypatch)
     out = decimate(lumpy, 6000)
     # MeshLab ran once, on the pre-simplified mesh: no fall-back to MeshLab alone
     assert len(calls) == 1 and calls[0][1] == {"flip_t_vertices": True} and calls[0][0] <= 9000
