@@ -122,7 +122,7 @@ class OpeningTeacher:
         # a door's round trip to its inner face, in the door's current frame: ``out`` points
         # from the hinge line to the handle, the free edge is ``edge`` past the handle that
         # way and the inner face ``face`` behind the handle point
-        out = _radial(u, handle) if door else axis
+        out = _radial(u) if door else axis
         if door and self.extent is None:
             self.extent = door_extent(u, handle, axis, out)
         edge, face = self.extent if door else (0.0, 0.0)
@@ -211,12 +211,10 @@ def opening_direction(u: Any, handle: np.ndarray) -> np.ndarray:
     return tangent / max(float(np.linalg.norm(tangent)), 1e-9)
 
 
-def _radial(u: Any, handle: np.ndarray) -> np.ndarray:
+def _radial(u: Any) -> np.ndarray:
     """(3,) unit world direction from a revolute target part's hinge line to its handle,
-    square to the hinge."""
-    hinge = u.joint_axis_world()[0].cpu().numpy()
-    arm = handle - u.target_link.pose.p[0].cpu().numpy()
-    arm = arm - (arm @ hinge) * hinge
+    square to the hinge (the env's ``hinge_to_handle``)."""
+    arm = u.hinge_to_handle()[0].cpu().numpy().astype(float)
     return arm / max(float(np.linalg.norm(arm)), 1e-9)
 
 
