@@ -985,6 +985,14 @@ def train(
         "episodes, labelled by the teacher, added to what it is fitted to).",
     ),
     dagger_episodes: int = typer.Option(200, help="The clone's episodes per DAgger round."),
+    clone_members: int = typer.Option(
+        1,
+        help="With --demo-episodes: clones fitted from different initial weights, averaged "
+        "in one policy (its MLP that many times as wide).",
+    ),
+    bc_obs_noise: float = typer.Option(
+        0.0, help="Gaussian noise on the normalized observations while cloning (std)."
+    ),
     learning_rate: float = typer.Option(3e-4, help="PPO's initial learning rate."),
     anchor_batches: int = typer.Option(
         0,
@@ -1045,6 +1053,8 @@ def train(
         demo_episodes=demo_episodes,
         dagger_rounds=dagger_rounds,
         dagger_episodes=dagger_episodes,
+        clone_members=clone_members,
+        bc_obs_noise=bc_obs_noise,
         learning_rate=learning_rate,
         log_std_init=log_std_init,
         anchor_batches=anchor_batches,

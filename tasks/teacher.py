@@ -383,16 +383,102 @@ def clone(
     batch_size: int = 256,
     learning_rate: float = 1e-3,
     seed: int = 0,
+    obs_noise: float = 0.0,
 ) -> list[float]:
     """Fit the mean action of ``model`` (an SB3 PPO model, Gaussian MlpPolicy) to the
     demos' actions (mean squared error; the log std stays); ``normalize`` maps raw
-    observations to what the policy sees. Returns the loss of each epoch."""
+    observations to what the policy sees; ``obs_noise``: the standard deviation of
+    Gaussian noise added to those (normalized) observations in every batch, so that
+    nearby states get nearby actions. Returns the loss of each epoch."""
+    return _fit_mean_action(
+        model.policy, demos, normalize, epochs, batch_size, learning_rate, seed, obs_noise
+    )
+
+
+def clone_ensemble(
+    model: Any,
+    demos: Demos,
+    members: int,
+    normalize: Any = None,
+    epochs: int = 200,
+    batch_size: int = 256,
+    learning_rate: float = 1e-3,
+    seed: int = 0,
+    obs_noise: float = 0.0,
+) -> list[float]:
+    """Fit ``members`` clones from different initial weights (as :func:`clone`, each
+    ``1 / members`` of the width of ``model``'s policy MLP) and write them into ``model``'s
+    policy so that its mean action is theirs averaged (:func:`set_ensemble`). Clones of
+    one teacher differ on objects they never saw as much as recipes do; their mean varies
+    less. Returns the members' mean loss of each epoch."""
+    import torch
+
+    policy = model.policy
+    widths = list(policy.net_arch["pi"] if isinstance(policy.net_arch, dict) else policy.net_arch)
+    if members < 1 or any(w % members for w in widths):
+        raise ValueError(f"{members} members do not share the policy's widths {widths}")
+    kwargs = dict(model.policy_kwargs, net_arch=[w // members for w in widths])
+    fitted, losses = [], []
+    for i in range(members):
+        with torch.random.fork_rng():
+            torch.manual_seed(seed * 1000 + i)
+            member = model.policy_class(
+                model.observation_space, model.action_space, model.lr_schedule, **kwargs
+            ).to(policy.device)
+        losses.append(
+            _fit_mean_action(
+                member, demos, normalize, epochs, batch_size, learning_rate, seed + i, obs_noise
+            )
+        )
+        fitted.append(member)
+    set_ensemble(policy, fitted)
+    return [float(x) for x in np.mean(losses, axis=0)]
+
+
+def set_ensemble(policy: Any, members: list[Any]) -> None:
+    """Write same-shaped SB3 MlpPolicies into ``policy``, whose policy MLP is
+    ``len(members)`` times as wide, so that its mean action is exactly their mean: the
+    first layer stacks the members' rows, the deeper ones are block-diagonal (a member's
+    units see only its own), the action layer averages. The log std is the members' mean;
+    the value function stays ``policy``'s."""
+    import torch
+
+    k = len(members)
+    layers = [m for m in policy.mlp_extractor.policy_net if isinstance(m, torch.nn.Linear)]
+    parts = [
+        [m for m in p.mlp_extractor.policy_net if isinstance(m, torch.nn.Linear)] for p in members
+    ]
+    for i, layer in enumerate(layers):
+        want = sum(p[i].out_features for p in parts)
+        if layer.out_features != want:
+            raise ValueError(
+                f"policy layer {i} has {layer.out_features} units, the members {want} together"
+            )
+    with torch.no_grad():
+        for i, layer in enumerate(layers):
+            weights = [p[i].weight for p in parts]
+            layer.weight.copy_(torch.cat(weights, 0) if i == 0 else torch.block_diag(*weights))
+            layer.bias.copy_(torch.cat([p[i].bias for p in parts], 0))
+        policy.action_net.weight.copy_(torch.cat([p.action_net.weight for p in members], 1) / k)
+        policy.action_net.bias.copy_(torch.stack([p.action_net.bias for p in members]).mean(0))
+        policy.log_std.copy_(torch.stack([p.log_std for p in members]).mean(0))
+
+
+def _fit_mean_action(
+    policy: Any,
+    demos: Demos,
+    normalize: Any,
+    epochs: int,
+    batch_size: int,
+    learning_rate: float,
+    seed: int,
+    obs_noise: float,
+) -> list[float]:
     import torch
 
     obs = normalize(demos.obs) if normalize is not None else demos.obs
-    x = torch.as_tensor(obs, dtype=torch.float32, device=model.device)
-    y = torch.as_tensor(demos.actions, dtype=torch.float32, device=model.device)
-    policy = model.policy
+    x = torch.as_tensor(obs, dtype=torch.float32, device=policy.device)
+    y = torch.as_tensor(demos.actions, dtype=torch.float32, device=policy.device)
     opt = torch.optim.Adam(actor_parameters(policy), lr=learning_rate)
     gen = torch.Generator().manual_seed(seed)
     losses = []
@@ -402,7 +488,10 @@ def clone(
         total = 0.0
         for i in range(0, len(x), batch_size):
             idx = order[i : i + batch_size]
-            loss = torch.nn.functional.mse_loss(_mean_action(policy, x[idx]), y[idx])
+            xb = x[idx]
+            if obs_noise > 0:
+                xb = xb + obs_noise * torch.randn(xb.shape, generator=gen).to(xb.device)
+            loss = torch.nn.functional.mse_loss(_mean_action(policy, xb), y[idx])
             opt.zero_grad()
             loss.backward()
             opt.step()

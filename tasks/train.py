@@ -114,6 +114,12 @@ class Args:
     """processes collecting the teacher's episodes"""
     bc_epochs: int = 100
     """epochs of behaviour cloning on the teacher's successful episodes"""
+    bc_obs_noise: float = 0.0
+    """standard deviation of Gaussian noise on the (normalized) observations while cloning"""
+    clone_members: int = 1
+    """with demo_episodes: clones fitted from different initial weights whose mean action is
+    the policy (tasks.teacher.clone_ensemble: one MLP, the members' hidden units side by
+    side, each net_arch wide; the value function stays net_arch wide)"""
     dagger_rounds: int = 0
     """with demo_episodes: rounds of DAgger after the first clone (tasks.teacher.
     collect_corrections): the clone runs dagger_episodes episodes, the teacher labels the
@@ -624,7 +630,7 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
     took: they count in the run's wall-clock) and the steps cloned (``tasks.teacher.Demos``)."""
     import tempfile
 
-    from tasks.teacher import check_task, clone, join_demos
+    from tasks.teacher import check_task, join_demos
 
     check_task(args.env_id, args.control_mode)
     t0 = time.time()
@@ -640,7 +646,7 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
         venv.obs_rms.var = demos.obs.var(axis=0).astype(np.float64)
         venv.obs_rms.count = float(len(demos.obs))
         normalize = ObsNorm.from_vec_normalize(venv)
-    losses = clone(model, demos, normalize, epochs=args.bc_epochs, seed=args.seed)
+    losses = _clone(model, demos, normalize, args, args.seed)
     report: dict[str, Any] = {
         "episodes": len(collected.success),
         "successful": int(demos.success.sum()),
@@ -658,7 +664,7 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
                 _collect_corrections, args, args.dagger_episodes, seed, policy_zip, normalize
             )
         demos = join_demos(demos, fixes)
-        losses = clone(model, demos, normalize, epochs=args.bc_epochs, seed=args.seed + r + 1)
+        losses = _clone(model, demos, normalize, args, args.seed + r + 1)
         rounds.append(
             {
                 "episodes": len(fixes.success),
@@ -673,6 +679,24 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
     report["seconds"] = round(time.time() - t0, 1)
     log.info("behaviour cloning on the teacher's episodes: %s", report)
     return report, demos
+
+
+def _clone(model: Any, demos: Any, normalize: Any, args: Args, seed: int) -> list[float]:
+    """Fit ``model``'s policy to ``demos``: one clone, or ``args.clone_members`` averaged."""
+    from tasks.teacher import clone, clone_ensemble
+
+    common = dict(epochs=args.bc_epochs, seed=seed, obs_noise=args.bc_obs_noise)
+    if args.clone_members > 1:
+        return clone_ensemble(model, demos, args.clone_members, normalize, **common)
+    return clone(model, demos, normalize, **common)
+
+
+def policy_net_arch(args: Args) -> list[int] | dict[str, list[int]]:
+    """The PPO policy's ``net_arch``: ``args.net_arch`` for both MLPs, the policy's
+    ``args.clone_members`` times as wide when that many clones are averaged in it."""
+    if args.clone_members > 1:
+        return {"pi": [w * args.clone_members for w in args.net_arch], "vf": list(args.net_arch)}
+    return list(args.net_arch)
 
 
 def _in_workers(collect: Any, args: Args, episodes: int, seed: int, *extra: Any) -> Any:
@@ -872,6 +896,10 @@ def train(args: Args) -> dict[str, Any]:
         raise ValueError(
             "--dagger-rounds refines a clone of the teacher: it needs --demo-episodes N"
         )
+    if args.clone_members > 1 and args.demo_episodes <= 0 and not resuming:
+        raise ValueError(
+            "--clone-members averages clones of the teacher: it needs --demo-episodes N"
+        )
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
@@ -904,7 +932,7 @@ def train(args: Args) -> dict[str, Any]:
             target_kl=args.target_kl,
             seed=args.seed,
             device=args.device,
-            policy_kwargs={"net_arch": list(args.net_arch), "log_std_init": args.log_std_init},
+            policy_kwargs={"net_arch": policy_net_arch(args), "log_std_init": args.log_std_init},
             verbose=0,
         )
         if args.gripper_init is not None:

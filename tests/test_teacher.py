@@ -203,6 +203,68 @@ def test_the_anchor_pulls_a_drifted_clone_back_to_the_teacher() -> None:
         CloneAnchor(model, demos, batches=0)
 
 
+def _flat_demos() -> tuple[np.ndarray, np.ndarray, object]:
+    from tasks.teacher import Demos
+
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(512, 6)).astype(np.float32)
+    actions = np.tanh(obs[:, :4] - 0.5 * obs[:, 2:]).astype(np.float32)
+    return obs, actions, Demos(obs, actions, np.arange(512) // 32, np.ones(16, bool))
+
+
+def _flat_wide_ppo(members: int):
+    """_flat_ppo's model with the policy MLP ``members`` times 32 wide."""
+    model = _flat_ppo()
+    from stable_baselines3 import PPO
+
+    return PPO("MlpPolicy", model.get_env(), n_steps=64, batch_size=32, n_epochs=2, seed=0,
+               policy_kwargs={"net_arch": {"pi": [32 * members] * 2, "vf": [64, 64]}})  # fmt: skip
+
+
+def test_an_ensemble_policy_acts_as_the_mean_of_its_members_after_a_save(tmp_path) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    from tasks.teacher import set_ensemble
+
+    wide = _flat_wide_ppo(3)
+    kwargs = dict(wide.policy_kwargs, net_arch=[32, 32])
+    members = []
+    for i in range(3):
+        torch.manual_seed(i)
+        members.append(wide.policy_class(wide.observation_space, wide.action_space,
+                                         wide.lr_schedule, **kwargs))  # fmt: skip
+    x = torch.randn(9, 6)
+    mean = torch.stack([m.get_distribution(x).distribution.mean for m in members]).mean(0)
+    assert not torch.allclose(wide.policy.get_distribution(x).distribution.mean, mean, atol=1e-3)
+    set_ensemble(wide.policy, members)
+    wide.save(tmp_path / "policy.zip")
+    loaded = PPO.load(tmp_path / "policy.zip", device="cpu")
+    with torch.no_grad():
+        got = loaded.policy.get_distribution(x).distribution.mean
+    assert torch.allclose(got, mean.detach(), atol=1e-5)
+    with pytest.raises(ValueError, match="units"):
+        set_ensemble(wide.policy, members[:2])
+
+
+def test_an_ensemble_of_clones_fits_the_teacher_and_its_members_differ() -> None:
+    import torch
+
+    from tasks.teacher import clone_ensemble
+
+    obs, actions, demos = _flat_demos()
+    model = _flat_wide_ppo(3)
+    losses = clone_ensemble(model, demos, 3, epochs=150, obs_noise=0.02)
+    error = np.mean((model.predict(obs, deterministic=True)[0] - actions) ** 2)
+    assert losses[-1] < 0.1 * losses[0] and error < 0.02
+    first = model.policy.mlp_extractor.policy_net[0].weight.detach()
+    assert not torch.allclose(first[:32], first[32:64])  # members from different weights
+    off = model.policy.mlp_extractor.policy_net[2].weight.detach()[:32, 32:]
+    assert torch.count_nonzero(off) == 0  # a member's units see only its own
+    with pytest.raises(ValueError, match="widths"):
+        clone_ensemble(model, demos, 5, epochs=1)
+
+
 def test_a_frozen_actor_leaves_ppo_only_the_critic_to_train() -> None:
     import torch
 
