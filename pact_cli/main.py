@@ -979,6 +979,11 @@ def train(
         help="Opening tasks: first clone the scripted teacher's successful episodes on the "
         "training assets (this many episodes; 0: PPO from scratch).",
     ),
+    demos_from: Path = typer.Option(
+        None,
+        help="A run's teacher_demos.npz: clone those steps instead of running the teacher "
+        "(other clone settings on the same episodes).",
+    ),
     dagger_rounds: int = typer.Option(
         0,
         help="With --demo-episodes: rounds of DAgger after the first clone (the clone's own "
@@ -1051,6 +1056,7 @@ def train(
         lr_anneal_steps=lr_anneal_steps or None,
         randomize_physics=randomize_physics,
         demo_episodes=demo_episodes,
+        demos_from=str(demos_from) if demos_from else None,
         dagger_rounds=dagger_rounds,
         dagger_episodes=dagger_episodes,
         clone_members=clone_members,

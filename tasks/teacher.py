@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -284,6 +285,26 @@ class Demos:
     def successful(self) -> Demos:
         keep = self.success[self.episode]
         return Demos(self.obs[keep], self.actions[keep], self.episode[keep], self.success)
+
+    def save_steps(self, path: str | Path) -> None:
+        """The steps' observations and actions (a run's ``teacher_demos.npz``)."""
+        np.savez_compressed(path, obs=self.obs, actions=self.actions)
+
+    @classmethod
+    def load_steps(cls, path: str | Path) -> Demos:
+        """Steps written by :meth:`save_steps`, as one successful episode."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such file of the teacher's steps")
+        with np.load(path) as d:
+            if "obs" not in d.files or "actions" not in d.files:
+                raise ValueError(f"{path}: not a file of the teacher's steps (obs, actions)")
+            obs, actions = d["obs"].astype(np.float32), d["actions"].astype(np.float32)
+        if obs.ndim != 2 or actions.ndim != 2 or len(obs) != len(actions) or len(obs) == 0:
+            raise ValueError(
+                f"{path}: {obs.shape} observations and {actions.shape} actions are not steps"
+            )
+        return cls(obs, actions, np.zeros(len(obs), np.int64), np.ones(1, bool))
 
 
 def check_task(env_id: str, control_mode: str) -> None:

@@ -110,6 +110,9 @@ class Args:
     """OpenDrawer-v0, OpenDoor-v0: episodes of the scripted teacher (tasks.teacher) on the
     training assets whose actions the policy is fitted to before PPO starts (0: PPO from
     scratch)"""
+    demos_from: str | None = None
+    """a run's teacher_demos.npz: clone those steps instead of running the teacher (its
+    episodes, demo_episodes, are then not run; the other cloning settings apply)"""
     demo_workers: int = 2
     """processes collecting the teacher's episodes"""
     bc_epochs: int = 100
@@ -164,6 +167,11 @@ class Args:
     """show a progress bar of the env steps (SB3's, drawn with rich)"""
     video_episodes: int = 2
     """held-out episodes recorded in out_dir/videos when training ends (0: none)"""
+
+    @property
+    def clones_teacher(self) -> bool:
+        """The run starts from a clone of the teacher (its episodes or a saved run's steps)."""
+        return self.demo_episodes > 0 or bool(self.demos_from)
 
 
 #: Training episode length of the recipe per task, in policy steps at 10 Hz: a drawer
@@ -630,16 +638,28 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
     took: they count in the run's wall-clock) and the steps cloned (``tasks.teacher.Demos``)."""
     import tempfile
 
-    from tasks.teacher import check_task, join_demos
+    from tasks.teacher import Demos, check_task, join_demos
 
     check_task(args.env_id, args.control_mode)
     t0 = time.time()
-    collected = _in_workers(_collect_demos, args, args.demo_episodes, 50_000)
-    demos = collected.successful()
-    if len(demos.obs) == 0:
-        raise RuntimeError(
-            f"{args.assets}: the teacher opened no part in {len(collected.success)} episodes"
-        )
+    report: dict[str, Any] = {}
+    if args.demos_from:
+        demos = Demos.load_steps(args.demos_from)
+        width = venv.observation_space.shape[0]
+        if demos.obs.shape[1] != width:
+            raise ValueError(
+                f"{args.demos_from}: {demos.obs.shape[1]} observations a step, the task's "
+                f"{width} (another task or observation set)"
+            )
+        report["demos_from"] = str(args.demos_from)
+    else:
+        collected = _in_workers(_collect_demos, args, args.demo_episodes, 50_000)
+        demos = collected.successful()
+        if len(demos.obs) == 0:
+            raise RuntimeError(
+                f"{args.assets}: the teacher opened no part in {len(collected.success)} episodes"
+            )
+        report.update(episodes=len(collected.success), successful=int(demos.success.sum()))
     normalize = None
     if hasattr(venv, "obs_rms"):
         venv.obs_rms.mean = demos.obs.mean(axis=0).astype(np.float64)
@@ -647,13 +667,9 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
         venv.obs_rms.count = float(len(demos.obs))
         normalize = ObsNorm.from_vec_normalize(venv)
     losses = _clone(model, demos, normalize, args, args.seed)
-    report: dict[str, Any] = {
-        "episodes": len(collected.success),
-        "successful": int(demos.success.sum()),
-        "steps": len(demos.obs),
-        "bc_loss_first": round(losses[0], 5),
-        "bc_loss_last": round(losses[-1], 5),
-    }
+    report.update(
+        steps=len(demos.obs), bc_loss_first=round(losses[0], 5), bc_loss_last=round(losses[-1], 5)
+    )
     rounds = []
     for r in range(args.dagger_rounds):
         with tempfile.TemporaryDirectory() as tmp:
@@ -890,16 +906,13 @@ def train(args: Args) -> dict[str, Any]:
         # a run started before the robot-frame observations goes on without them
         saved = json.loads((out / "args.json").read_text())
         args = replace(args, robot_frame_obs=bool(saved.get("robot_frame_obs", False)))
-    if args.anchor_batches > 0 and args.demo_episodes <= 0 and not resuming:
-        raise ValueError("--anchor-batches keeps PPO near a clone: it needs --demo-episodes N")
-    if args.dagger_rounds > 0 and args.demo_episodes <= 0 and not resuming:
-        raise ValueError(
-            "--dagger-rounds refines a clone of the teacher: it needs --demo-episodes N"
-        )
-    if args.clone_members > 1 and args.demo_episodes <= 0 and not resuming:
-        raise ValueError(
-            "--clone-members averages clones of the teacher: it needs --demo-episodes N"
-        )
+    needs = "it needs --demo-episodes N or --demos-from FILE"
+    if args.anchor_batches > 0 and not args.clones_teacher and not resuming:
+        raise ValueError(f"--anchor-batches keeps PPO near a clone: {needs}")
+    if args.dagger_rounds > 0 and not args.clones_teacher and not resuming:
+        raise ValueError(f"--dagger-rounds refines a clone of the teacher: {needs}")
+    if args.clone_members > 1 and not args.clones_teacher and not resuming:
+        raise ValueError(f"--clone-members averages clones of the teacher: {needs}")
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)
@@ -939,10 +952,10 @@ def train(args: Args) -> dict[str, Any]:
             set_initial_action_mean(model, -1, args.gripper_init)
         if args.gripper_log_std_init is not None:
             set_initial_log_std(model, -1, args.gripper_log_std_init)
-        if args.demo_episodes > 0:
+        if args.clones_teacher:
             teacher, demos = start_from_teacher(model, venv, args)
             (out / "teacher.json").write_text(json.dumps(teacher, indent=2))
-            np.savez_compressed(out / "teacher_demos.npz", obs=demos.obs, actions=demos.actions)
+            demos.save_steps(out / "teacher_demos.npz")
     model.set_logger(configure(str(out), ["csv", "tensorboard", "log"]))
     eval_csv = out / "eval.csv"
     if not resuming and eval_csv.exists():
@@ -1035,9 +1048,7 @@ def train(args: Args) -> dict[str, Any]:
                         f"{path}: --anchor-batches needs the teacher's episodes "
                         "(--demo-episodes N on a new run)"
                     )
-                with np.load(path) as d:
-                    demos = Demos(d["obs"], d["actions"], np.zeros(len(d["obs"]), np.int64),
-                                  np.ones(1, bool))  # fmt: skip
+                demos = Demos.load_steps(path)
                 self.anchor = CloneAnchor(
                     model, demos, args.anchor_batches,
                     learning_rate=args.anchor_learning_rate, seed=args.seed,

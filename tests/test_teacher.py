@@ -365,7 +365,9 @@ def test_corrections_label_the_policys_own_states_with_the_teachers_actions(
 def test_dagger_rounds_add_the_clones_labelled_states_to_what_it_is_fitted_to(
     procedural_assets: Path, tmp_path: Path
 ) -> None:
-    from tasks.train import Args, train
+    from dataclasses import replace
+
+    from tasks.train import Args, load_policy, train
 
     args = Args(
         env_id="OpenDrawer-v0", assets=str(procedural_assets), num_envs=1, vector="sync",
@@ -378,6 +380,21 @@ def test_dagger_rounds_add_the_clones_labelled_states_to_what_it_is_fitted_to(
     assert fixes["episodes"] == 1 and fixes["steps"] == 50  # one 5-s drawer episode
     with np.load(tmp_path / "run" / "teacher_demos.npz") as d:
         assert len(d["obs"]) == teacher["steps"] + fixes["steps"]
+    # another clone of the same steps, without the teacher: two members averaged
+    saved = tmp_path / "run" / "teacher_demos.npz"
+    again = replace(args, out_dir=str(tmp_path / "again"), demo_episodes=0, dagger_rounds=0,
+                    demos_from=str(saved), clone_members=2)  # fmt: skip
+    teacher = train(again)["teacher"]
+    assert teacher["demos_from"] == str(saved) and "episodes" not in teacher
+    assert teacher["steps"] == len(np.load(saved)["obs"])
+    model, _, _ = load_policy(tmp_path / "again" / "policy.zip")
+    assert model.policy.mlp_extractor.policy_net[0].out_features == 2 * args.net_arch[0]
+    np.savez(tmp_path / "narrow.npz", obs=np.zeros((4, 3)), actions=np.zeros((4, 4)))
+    narrow = replace(
+        again, out_dir=str(tmp_path / "narrow"), demos_from=str(tmp_path / "narrow.npz")
+    )
+    with pytest.raises(ValueError, match="3 observations a step"):
+        train(narrow)
 
 
 def test_an_anchor_or_dagger_without_a_teacher_is_refused_before_any_env_starts(
@@ -389,6 +406,27 @@ def test_an_anchor_or_dagger_without_a_teacher_is_refused_before_any_env_starts(
         train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), anchor_batches=4))
     with pytest.raises(ValueError, match="demo-episodes"):
         train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), dagger_rounds=1))
+    with pytest.raises(ValueError, match="demos-from"):
+        train(Args(assets=str(tmp_path), out_dir=str(tmp_path / "run"), clone_members=3))
+
+
+def test_the_teachers_steps_are_saved_and_read_back_and_bad_files_are_named(tmp_path) -> None:
+    from tasks.teacher import Demos
+
+    obs = np.arange(12, dtype=np.float32).reshape(4, 3)
+    actions = np.ones((4, 2), np.float32)
+    Demos(obs, actions, np.zeros(4, np.int64), np.ones(1, bool)).save_steps(tmp_path / "d.npz")
+    back = Demos.load_steps(tmp_path / "d.npz")
+    assert np.array_equal(back.obs, obs) and np.array_equal(back.actions, actions)
+    assert len(back.successful().obs) == 4  # one successful episode of all the steps
+    with pytest.raises(FileNotFoundError, match="missing.npz"):
+        Demos.load_steps(tmp_path / "missing.npz")
+    np.savez(tmp_path / "other.npz", x=obs)
+    with pytest.raises(ValueError, match="other.npz: not a file of the teacher's steps"):
+        Demos.load_steps(tmp_path / "other.npz")
+    np.savez(tmp_path / "short.npz", obs=obs, actions=actions[:3])
+    with pytest.raises(ValueError, match="short.npz: .* are not steps"):
+        Demos.load_steps(tmp_path / "short.npz")
 
 
 def test_the_teacher_refuses_other_tasks_and_controllers() -> None:

@@ -351,10 +351,11 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
          "--demo-episodes", "300", "--learning-rate", "1e-4", "--log-std-init", "-3",
          "--anchor-batches", "10", "--critic-warmup-steps", "20000", "--fixed-obs-norm",
          "--dagger-rounds", "2", "--dagger-episodes", "50", "--clone-members", "3",
-         "--bc-obs-noise", "0.1"],
+         "--bc-obs-noise", "0.1", "--demos-from", "RUN/teacher_demos.npz"],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     assert seen[-1].clone_members == 3 and seen[-1].bc_obs_noise == pytest.approx(0.1)
+    assert seen[-1].demos_from == "RUN/teacher_demos.npz" and seen[-1].clones_teacher
     assert tasks.train.policy_net_arch(seen[-1]) == {"pi": [768, 768], "vf": [256, 256]}
     assert seen[-1].dagger_rounds == 2 and seen[-1].dagger_episodes == 50
     assert seen[-1].log_std_init == pytest.approx(-3.0)
@@ -368,6 +369,7 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
     assert seen[-1].log_std_init == pytest.approx(tasks.train.Args().log_std_init)
     assert seen[-1].update_obs_norm and seen[-1].anchor_batches == 0
     assert seen[-1].dagger_rounds == 0 and seen[-1].clone_members == 1
+    assert seen[-1].demos_from is None and not seen[-1].clones_teacher
     assert tasks.train.policy_net_arch(seen[-1]) == [256, 256]
     assert res.exit_code == 128 + signal.SIGTERM
     assert "stopped by SIGTERM" in res.output
