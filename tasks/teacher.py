@@ -405,36 +405,26 @@ def clone(
     learning_rate: float = 1e-3,
     seed: int = 0,
     obs_noise: float = 0.0,
+    members: int = 1,
 ) -> list[float]:
     """Fit the mean action of ``model`` (an SB3 PPO model, Gaussian MlpPolicy) to the
     demos' actions (mean squared error; the log std stays); ``normalize`` maps raw
     observations to what the policy sees; ``obs_noise``: the standard deviation of
     Gaussian noise added to those (normalized) observations in every batch, so that
-    nearby states get nearby actions. Returns the loss of each epoch."""
-    return _fit_mean_action(
-        model.policy, demos, normalize, epochs, batch_size, learning_rate, seed, obs_noise
-    )
+    nearby states get nearby actions. Returns the loss of each epoch (with ``members``,
+    the members' mean).
 
-
-def clone_ensemble(
-    model: Any,
-    demos: Demos,
-    members: int,
-    normalize: Any = None,
-    epochs: int = 200,
-    batch_size: int = 256,
-    learning_rate: float = 1e-3,
-    seed: int = 0,
-    obs_noise: float = 0.0,
-) -> list[float]:
-    """Fit ``members`` clones from different initial weights (as :func:`clone`, each
-    ``1 / members`` of the width of ``model``'s policy MLP) and write them into ``model``'s
-    policy so that its mean action is theirs averaged (:func:`set_ensemble`). Clones of
-    one teacher differ on objects they never saw as much as recipes do; their mean varies
-    less. Returns the members' mean loss of each epoch."""
+    ``members`` > 1 fits that many clones from different initial weights, each ``1 /
+    members`` of the width of ``model``'s policy MLP, and writes them into ``model``'s
+    policy so that its mean action is theirs averaged (:func:`set_ensemble`): clones of
+    one teacher differ on objects they never saw as much as recipes do, their mean
+    less."""
     import torch
 
+    fit = dict(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate)
     policy = model.policy
+    if members == 1:
+        return _fit_mean_action(policy, demos, normalize, seed=seed, obs_noise=obs_noise, **fit)
     widths = list(policy.net_arch["pi"] if isinstance(policy.net_arch, dict) else policy.net_arch)
     if members < 1 or any(w % members for w in widths):
         raise ValueError(f"{members} members do not share the policy's widths {widths}")
@@ -447,9 +437,7 @@ def clone_ensemble(
                 model.observation_space, model.action_space, model.lr_schedule, **kwargs
             ).to(policy.device)
         losses.append(
-            _fit_mean_action(
-                member, demos, normalize, epochs, batch_size, learning_rate, seed + i, obs_noise
-            )
+            _fit_mean_action(member, demos, normalize, seed=seed + i, obs_noise=obs_noise, **fit)
         )
         fitted.append(member)
     set_ensemble(policy, fitted)
@@ -489,6 +477,7 @@ def _fit_mean_action(
     policy: Any,
     demos: Demos,
     normalize: Any,
+    *,
     epochs: int,
     batch_size: int,
     learning_rate: float,

@@ -121,7 +121,7 @@ class Args:
     """standard deviation of Gaussian noise on the (normalized) observations while cloning"""
     clone_members: int = 1
     """with demo_episodes: clones fitted from different initial weights whose mean action is
-    the policy (tasks.teacher.clone_ensemble: one MLP, the members' hidden units side by
+    the policy (tasks.teacher.clone: one MLP, the members' hidden units side by
     side, each net_arch wide; the value function stays net_arch wide)"""
     dagger_rounds: int = 0
     """with demo_episodes: rounds of DAgger after the first clone (tasks.teacher.
@@ -698,13 +698,13 @@ def start_from_teacher(model: Any, venv: Any, args: Args) -> tuple[dict[str, Any
 
 
 def _clone(model: Any, demos: Any, normalize: Any, args: Args, seed: int) -> list[float]:
-    """Fit ``model``'s policy to ``demos``: one clone, or ``args.clone_members`` averaged."""
-    from tasks.teacher import clone, clone_ensemble
+    """Fit ``model``'s policy to ``demos`` per ``args`` (``args.clone_members`` averaged)."""
+    from tasks.teacher import clone
 
-    common = dict(epochs=args.bc_epochs, seed=seed, obs_noise=args.bc_obs_noise)
-    if args.clone_members > 1:
-        return clone_ensemble(model, demos, args.clone_members, normalize, **common)
-    return clone(model, demos, normalize, **common)
+    return clone(
+        model, demos, normalize, epochs=args.bc_epochs, seed=seed,
+        obs_noise=args.bc_obs_noise, members=args.clone_members,
+    )  # fmt: skip
 
 
 def policy_net_arch(args: Args) -> list[int] | dict[str, list[int]]:

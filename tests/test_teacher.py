@@ -250,11 +250,11 @@ def test_an_ensemble_policy_acts_as_the_mean_of_its_members_after_a_save(tmp_pat
 def test_an_ensemble_of_clones_fits_the_teacher_and_its_members_differ() -> None:
     import torch
 
-    from tasks.teacher import clone_ensemble
+    from tasks.teacher import clone
 
     obs, actions, demos = _flat_demos()
     model = _flat_wide_ppo(3)
-    losses = clone_ensemble(model, demos, 3, epochs=150, obs_noise=0.02)
+    losses = clone(model, demos, epochs=150, obs_noise=0.02, members=3)
     error = np.mean((model.predict(obs, deterministic=True)[0] - actions) ** 2)
     assert losses[-1] < 0.1 * losses[0] and error < 0.02
     first = model.policy.mlp_extractor.policy_net[0].weight.detach()
@@ -262,7 +262,7 @@ def test_an_ensemble_of_clones_fits_the_teacher_and_its_members_differ() -> None
     off = model.policy.mlp_extractor.policy_net[2].weight.detach()[:32, 32:]
     assert torch.count_nonzero(off) == 0  # a member's units see only its own
     with pytest.raises(ValueError, match="widths"):
-        clone_ensemble(model, demos, 5, epochs=1)
+        clone(model, demos, epochs=1, members=5)
 
 
 def test_a_frozen_actor_leaves_ppo_only_the_critic_to_train() -> None:
