@@ -120,9 +120,9 @@ class Args:
     bc_obs_noise: float = 0.0
     """standard deviation of Gaussian noise on the (normalized) observations while cloning"""
     clone_members: int = 1
-    """with demo_episodes: clones fitted from different initial weights whose mean action is
-    the policy (tasks.teacher.clone: one MLP, the members' hidden units side by
-    side, each net_arch wide; the value function stays net_arch wide)"""
+    """with demo_episodes or demos_from: clones fitted from different initial weights whose
+    mean action is the policy (tasks.teacher.clone: one MLP, the members' hidden units side
+    by side, each net_arch wide; the value function stays net_arch wide)"""
     dagger_rounds: int = 0
     """with demo_episodes: rounds of DAgger after the first clone (tasks.teacher.
     collect_corrections): the clone runs dagger_episodes episodes, the teacher labels the
