@@ -992,8 +992,8 @@ def train(
     dagger_episodes: int = typer.Option(200, help="The clone's episodes per DAgger round."),
     clone_members: int = typer.Option(
         1,
-        help="With --demo-episodes: clones fitted from different initial weights, averaged "
-        "in one policy (its MLP that many times as wide).",
+        help="With --demo-episodes or --demos-from: clones fitted from different initial "
+        "weights, averaged in one policy (its MLP that many times as wide).",
     ),
     bc_obs_noise: float = typer.Option(
         0.0, help="Gaussian noise on the normalized observations while cloning (std)."
