@@ -46,11 +46,12 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from generator.articulated import ObjectModelError
     from generator.data import DatasetError
     from sim_envs.asset_sources import AssetSourceError
+    from tasks.train import TrainingArgsError
 
     return (
         AssetFormatError, OutputFolderError, OutputLockedError, BuildError, CatalogError,
         ImportFormatError, InputError, ReportFormatError, ObjectModelError, DatasetError,
-        AssetSourceError, FileNotFoundError, FileExistsError, NotADirectoryError,
+        AssetSourceError, TrainingArgsError, FileNotFoundError, FileExistsError, NotADirectoryError,
         IsADirectoryError, PermissionError,
     )  # fmt: skip
 
@@ -999,6 +1000,10 @@ def train(
         0.0, help="Gaussian noise on the normalized observations while cloning (std)."
     ),
     learning_rate: float = typer.Option(3e-4, help="PPO's initial learning rate."),
+    n_steps: int = typer.Option(
+        128, help="PPO's rollout length per env between updates, in policy steps."
+    ),
+    batch_size: int = typer.Option(256, help="PPO's minibatch size, in transitions."),
     anchor_batches: int = typer.Option(
         0,
         help="With --demo-episodes: minibatches of behaviour cloning on the teacher's steps "
@@ -1062,6 +1067,8 @@ def train(
         clone_members=clone_members,
         bc_obs_noise=bc_obs_noise,
         learning_rate=learning_rate,
+        n_steps=n_steps,
+        batch_size=batch_size,
         log_std_init=log_std_init,
         anchor_batches=anchor_batches,
         critic_warmup_steps=critic_warmup_steps,

@@ -599,6 +599,10 @@ def write_video(frames: list[Any], stem: Path, fps: int = 20) -> Path:
 # --------------------------------------------------------------------------- training
 
 
+class TrainingArgsError(ValueError):
+    """Training arguments that cannot run together (the message names the options)."""
+
+
 class TrainingStopped(Exception):
     """A signal stopped the run (SIGTERM: ``kill``, a job scheduler; SIGINT: Ctrl-C); it
     saved its checkpoint first. ``signum``: the signal's number."""
@@ -906,13 +910,22 @@ def train(args: Args) -> dict[str, Any]:
         # a run started before the robot-frame observations goes on without them
         saved = json.loads((out / "args.json").read_text())
         args = replace(args, robot_frame_obs=bool(saved.get("robot_frame_obs", False)))
+    if args.n_steps < 1 or args.n_steps * args.num_envs < 2:
+        raise TrainingArgsError(
+            f"--n-steps {args.n_steps} with --num-envs {args.num_envs}: PPO's rollout needs "
+            "at least 2 transitions (n_steps >= 1, n_steps x num_envs >= 2)"
+        )
+    if args.batch_size < 2:
+        raise TrainingArgsError(
+            f"--batch-size {args.batch_size}: PPO's minibatches need at least 2"
+        )
     needs = "it needs --demo-episodes N or --demos-from FILE"
     if args.anchor_batches > 0 and not args.clones_teacher and not resuming:
-        raise ValueError(f"--anchor-batches keeps PPO near a clone: {needs}")
+        raise TrainingArgsError(f"--anchor-batches keeps PPO near a clone: {needs}")
     if args.dagger_rounds > 0 and not args.clones_teacher and not resuming:
-        raise ValueError(f"--dagger-rounds refines a clone of the teacher: {needs}")
+        raise TrainingArgsError(f"--dagger-rounds refines a clone of the teacher: {needs}")
     if args.clone_members > 1 and not args.clones_teacher and not resuming:
-        raise ValueError(f"--clone-members averages clones of the teacher: {needs}")
+        raise TrainingArgsError(f"--clone-members averages clones of the teacher: {needs}")
     (out / "args.json").write_text(json.dumps(asdict(args), indent=2))
     eval_assets = args.eval_assets or args.assets
     venv = make_train_env(args)

@@ -117,6 +117,7 @@ def test_sigterm_saves_the_checkpoint_and_closes_the_workers(
         sys.executable, "-c", "from pact_cli.main import main; main()", "train",
         "--assets", str(procedural_assets), "--steps", "1000000", "--num-envs", "2",
         "--eval-every", "0", "--video-episodes", "0", "--no-progress", "--out", str(run),
+        "--n-steps", "16", "--batch-size", "32",  # a first rollout of 2 x 16 steps
     ]  # fmt: skip
     child = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -142,7 +143,7 @@ def test_sigterm_saves_the_checkpoint_and_closes_the_workers(
     assert child.returncode == 128 + signal.SIGTERM, output
     assert "stopped by SIGTERM" in output and "--resume" in output
     state = json.loads((run / "checkpoint" / "state.json").read_text())
-    assert state["num_timesteps"] >= 256  # at least the first rollout: 2 envs x 128 steps
+    assert state["num_timesteps"] >= 32  # at least the first rollout: 2 envs x 16 steps
     assert (run / "policy.zip").is_file()
     deadline = time.time() + 10  # no worker outlives the run
     while time.time() < deadline and any(Path(f"/proc/{pid}").exists() for pid in workers):
@@ -334,6 +335,7 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
 
     import tasks.train
     from pact_cli.main import app
+    from tasks.train import Args
 
     seen = []
 
@@ -351,9 +353,11 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
          "--demo-episodes", "300", "--learning-rate", "1e-4", "--log-std-init", "-3",
          "--anchor-batches", "10", "--critic-warmup-steps", "20000", "--fixed-obs-norm",
          "--dagger-rounds", "2", "--dagger-episodes", "50", "--clone-members", "3",
-         "--bc-obs-noise", "0.1", "--demos-from", "RUN/teacher_demos.npz"],
+         "--bc-obs-noise", "0.1", "--demos-from", "RUN/teacher_demos.npz",
+         "--n-steps", "64", "--batch-size", "128"],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
+    assert seen[-1].n_steps == 64 and seen[-1].batch_size == 128
     assert seen[-1].clone_members == 3 and seen[-1].bc_obs_noise == pytest.approx(0.1)
     assert seen[-1].demos_from == "RUN/teacher_demos.npz" and seen[-1].clones_teacher
     assert tasks.train.policy_net_arch(seen[-1]) == {"pi": [768, 768], "vf": [256, 256]}
@@ -369,7 +373,32 @@ def test_pact_train_passes_its_options_and_reports_a_stop(
     assert seen[-1].log_std_init == pytest.approx(tasks.train.Args().log_std_init)
     assert seen[-1].update_obs_norm and seen[-1].anchor_batches == 0
     assert seen[-1].dagger_rounds == 0 and seen[-1].clone_members == 1
+    assert (seen[-1].n_steps, seen[-1].batch_size) == (Args.n_steps, Args.batch_size)
     assert seen[-1].demos_from is None and not seen[-1].clones_teacher
     assert tasks.train.policy_net_arch(seen[-1]) == [256, 256]
     assert res.exit_code == 128 + signal.SIGTERM
     assert "stopped by SIGTERM" in res.output
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--n-steps", "0"], "--n-steps 0 with --num-envs 4"),
+        (["--n-steps", "1", "--num-envs", "1"], "at least 2 transitions"),
+        (["--batch-size", "1"], "--batch-size 1"),
+    ],
+)
+def test_pact_train_refuses_a_rollout_or_minibatch_ppo_cannot_use(
+    options: list[str], message: str, tmp_path: Path
+) -> None:
+    """A rollout of fewer than 2 transitions or a minibatch of 1 stops `pact train` with
+    one line naming the option, before any env starts or any run file is written."""
+    from typer.testing import CliRunner
+
+    from pact_cli.main import app
+
+    run = tmp_path / "run"
+    res = CliRunner().invoke(app, ["train", "--assets", str(tmp_path), "--out", str(run), *options])
+    assert res.exit_code != 0
+    assert message in res.output
+    assert not (run / "args.json").exists()
