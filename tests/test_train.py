@@ -32,9 +32,9 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
         env_id="OpenDrawer-v0",
         assets=str(procedural_assets),
         num_envs=2,
-        total_timesteps=250,  # one rollout (2 envs x 125 steps) and one update
-        n_steps=125,
-        batch_size=125,
+        total_timesteps=50,  # one rollout (2 envs x 25 steps) and one update
+        n_steps=25,
+        batch_size=25,
         n_epochs=2,
         max_episode_steps=50,
         eval_max_episode_steps=5,
@@ -71,14 +71,14 @@ def test_ppo_smoke_run_writes_logs(procedural_assets: Path, tmp_path: Path) -> N
     assert res["by_part_kind"]["drawer"]["success"] == int(ep["success"])
     assert (run / "curve.png").stat().st_size > 0
     state = json.loads((run / "checkpoint" / "state.json").read_text())
-    assert state["num_timesteps"] == 250
+    assert state["num_timesteps"] == 50
 
     # resume: the run goes on from its checkpoint to the new total, the curve continues
-    resumed = train(replace(args, total_timesteps=500, resume=True, video_episodes=1))
-    assert resumed["timesteps"] == 500
+    resumed = train(replace(args, total_timesteps=100, resume=True, video_episodes=1))
+    assert resumed["timesteps"] == 100
     rows = (run / "eval.csv").read_text().splitlines()
-    assert [int(r.split(",")[0]) for r in rows[1:]] == [250, 500]
-    assert json.loads((run / "checkpoint" / "state.json").read_text())["num_timesteps"] == 500
+    assert [int(r.split(",")[0]) for r in rows[1:]] == [50, 100]
+    assert json.loads((run / "checkpoint" / "state.json").read_text())["num_timesteps"] == 100
     assert resumed["seconds"] >= float(rows[1].split(",")[1])  # wall-clock adds up
     videos = list((run / "videos").iterdir())
     assert len(videos) == 1 and videos[0].name.startswith("episode_000_desk")
