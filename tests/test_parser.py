@@ -179,8 +179,8 @@ def test_flip_swaps_left_and_right_doors(tmp_path: Path, flip: float) -> None:
     assert s["image"].shape == (3, 64, 64) and int(s["category"]) == CATEGORIES.index("cabinet")
 
 
-def test_a_second_folder_joins_the_training_items_from_its_own_root(tmp_path: Path) -> None:
-    """--extra-data: the second folder's train items, repeated, read from that folder."""
+def test_other_folders_join_the_training_items_from_their_own_roots(tmp_path: Path) -> None:
+    """--extra-data: the other folders' train items, repeated, read from their folders."""
     _tiny_dataset(tmp_path / "procedural")
     _tiny_dataset(tmp_path / "real")
     real_img = tmp_path / "real" / "images" / "a.png"
@@ -191,6 +191,14 @@ def test_a_second_folder_joins_the_training_items_from_its_own_root(tmp_path: Pa
     assert len(ds) == 4
     assert float(ds[0]["image"].mean()) > 0.3  # the procedural photo
     assert all(float(ds[i]["image"][:, 20:44, 20:44].max()) == 0.0 for i in (1, 2, 3))
+    # several folders (other seeds' data): each one's items, each from its own root
+    _tiny_dataset(tmp_path / "seed2")
+    items = mixed_items(tmp_path / "procedural", [tmp_path / "real", tmp_path / "seed2"], 1)
+    assert [it.get("root") for it in items] == [
+        None,
+        str(tmp_path / "real"),
+        str(tmp_path / "seed2"),
+    ]
 
 
 def test_training_stopped_by_its_time_limit_leaves_weights_and_resumes(tmp_path: Path) -> None:

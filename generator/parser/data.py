@@ -298,13 +298,18 @@ def split_items(root: str | Path, split: str = "train") -> list[dict]:
 
 
 def mixed_items(
-    root: str | Path, extra: str | Path, repeat: int, split: str = "train"
+    root: str | Path,
+    extra: str | Path | Sequence[str | Path],
+    repeat: int,
+    split: str = "train",
 ) -> list[dict]:
-    """The items of ``root`` and, ``repeat`` times over, those of a second folder (each
-    carrying its ``root``): a small set of other photos (renders of real objects)
-    weighed into the training of a large one."""
+    """The items of ``root`` and, ``repeat`` times over, those of one or more other
+    folders (each item carrying its ``root``): a small set of other photos (renders of
+    real objects) weighed into the training of a large one, or more procedural folders
+    of other seeds (``repeat`` 1)."""
     own = split_items(root, split)
-    other = [dict(it, root=str(extra)) for it in split_items(extra, split)]
+    folders = [extra] if isinstance(extra, (str, Path)) else list(extra)
+    other = [dict(it, root=str(f)) for f in folders for it in split_items(f, split)]
     return own + other * repeat
 
 

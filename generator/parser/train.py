@@ -84,8 +84,9 @@ class Args:
     reload_every: int = 1000
     max_minutes: float = 0.0  # stop (after a checkpoint) after this long; 0: no limit
     init_from: str = ""  # a weights folder to start from (fresh optimiser and schedule)
-    extra_data: str = ""  # a second parser-data folder (renders of real objects) whose
-    extra_repeat: int = 1  # train items join the batches' draw this many times over
+    extra_data: str = ""  # more parser-data folders, comma-separated (renders of real
+    extra_repeat: int = 1  # objects, other seeds) whose train items join the batches' draw
+    # this many times over
     resume: bool = True
 
 
@@ -299,7 +300,9 @@ def train(args: Args) -> Path:
     while step < args.steps and not timed_out:
         size = args.small_size if step < switch else args.size
         items = (
-            mixed_items(args.data, args.extra_data, args.extra_repeat) if args.extra_data else None
+            mixed_items(args.data, args.extra_data.split(","), args.extra_repeat)
+            if args.extra_data
+            else None
         )
         ds = ParserDataset(args.data, "train", size, augment=True, items=items)
         stop = min(args.steps, (step // args.reload_every + 1) * args.reload_every)
