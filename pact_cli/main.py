@@ -107,20 +107,32 @@ def sample(
     seed: int = typer.Option(0, "--seed", help="Seed of the first object; object k uses seed + k."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder; one bundle per object."),
     split: str = typer.Option("train", "--split", help="Parameter ranges: train or test."),
+    realistic: bool = typer.Option(
+        False,
+        "--realistic",
+        help="The realistic factory (the parser's training objects: real proportions, "
+        "handles, legs, plinths, knobs; ids <category>_r...); also -c other.",
+    ),
 ) -> None:
     """Sample seeded procedural articulated objects as bundles in OUT/<id>/."""
     from generator.bundle import save_bundle
     from generator.procedural import UnknownCategoryError, object_id, sample_object
+    from generator.procedural.realistic import realistic_object_id, sample_realistic_object
 
+    if split not in ("train", "test"):
+        raise fail(f"--split {split!r}: train or test")
+    sampler, name = (
+        (sample_realistic_object, realistic_object_id) if realistic else (sample_object, object_id)
+    )
     cats = list(CATEGORIES) if category == "all" else [category]
     written = []
     for cat in cats:
         for k in range(n):
             try:
-                obj = sample_object(cat, seed + k, split=split)
+                obj = sampler(cat, seed + k, split=split)
             except UnknownCategoryError as e:
                 raise fail(e) from e
-            d = save_bundle(obj, out / object_id(cat, seed + k, split))
+            d = save_bundle(obj, out / name(cat, seed + k, split))
             written.append(d)
     for d in written:
         print(d)

@@ -29,6 +29,31 @@ def test_sample_unknown_category_is_a_clear_error(tmp_path):
     assert "sofa" in r.output and "cabinet" in r.output
 
 
+def test_sample_realistic_writes_the_realistic_factorys_objects(tmp_path):
+    """--realistic: the parser's realistic objects (ids ``<category>_r...``), the same as
+    ``sample_realistic_object`` makes; ``other`` only from that factory; a bad split is
+    one error line."""
+    from generator.bundle import load_bundle
+    from generator.procedural.realistic import sample_realistic_object
+
+    r = runner.invoke(
+        app, ["sample", "-c", "oven", "--n", "2", "--seed", "3", "--realistic", "-o", str(tmp_path)]
+    )
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["oven_r0000003", "oven_r0000004"]
+    got = load_bundle(tmp_path / "oven_r0000004")
+    want = sample_realistic_object("oven", 4)
+    assert [p.name for p in got.parts] == [p.name for p in want.parts]
+    assert got.provenance["generator"] == "procedural_realistic"
+    r = runner.invoke(app, ["sample", "-c", "other", "--realistic", "-o", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    assert [p.name for p in (tmp_path / "o").iterdir()] == ["other_r0000000"]
+    r = runner.invoke(app, ["sample", "-c", "other", "-o", str(tmp_path / "x")])
+    assert r.exit_code == 2 and "other" in r.output
+    r = runner.invoke(app, ["sample", "-c", "oven", "--split", "val", "-o", str(tmp_path / "x")])
+    assert r.exit_code == 2 and "--split 'val'" in r.output
+
+
 def test_sample_build_validate_and_bad_bundles(tmp_path):
     r = runner.invoke(
         app, ["sample", "-c", "microwave", "--n", "2", "--seed", "5", "--out", str(tmp_path)]
