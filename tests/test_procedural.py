@@ -424,3 +424,28 @@ def test_realistic_thin_vent_grille_builds() -> None:
     for seed in (89, 372):
         obj = sample_realistic_object("microwave", seed)
         assert obj.provenance["params"]["kind"] == "over_range" and len(obj.movable_parts) == 1
+
+
+def test_realistic_double_fridge_doors_clear_each_other_as_they_start_to_open() -> None:
+    """A side-by-side or French-door fridge's doors are 4-7 cm thick: as one starts to
+    open, its free edge's back corner swings toward the other door by up to
+    thickness^2 / (2 width), 5-7 mm, before it moves away. The gap between them leaves
+    room for it: no overlap with the other door at the small angles where that happens."""
+    from generator.procedural.realistic import sample_realistic_object
+
+    found = set()
+    for seed in range(40):
+        obj = sample_realistic_object("refrigerator", seed)
+        kind = obj.provenance["params"]["kind"]
+        if kind not in ("side_by_side", "french") or kind in found:
+            continue
+        found.add(kind)
+        doors = [p for p in obj.movable_parts if p.semantic == "door"]
+        assert len(doors) == 2, (seed, kind)
+        for door, other in (doors, doors[::-1]):
+            for angle in (0.03, 0.06, 0.1, 0.15, 0.2):
+                posed = door.posed_mesh(angle)
+                assert _overlap(posed, other.mesh) < OVERLAP_TOL, (seed, kind, door.name, angle)
+        if found == {"side_by_side", "french"}:
+            break
+    assert found == {"side_by_side", "french"}

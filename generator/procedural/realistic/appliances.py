@@ -65,6 +65,9 @@ FRIDGE_KINDS = {
     "mini": 0.12,
 }
 WASHER_KINDS = {"front": 0.5, "top": 0.38, "dryer": 0.12}
+#: Largest gap (m) between a side-by-side or French-door fridge's doors: their 4-7 cm
+#: thick doors need 5-7 mm for the free edge's back corner to clear the other door.
+FRIDGE_MAX_GAP = 0.008
 FINISHES = {
     "stainless": 0.36,
     "light_stainless": 0.08,
@@ -1004,7 +1007,7 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
 
     g = (gap / 2,) * 4
     if kind == "side_by_side":
-        gm = free_edge_gap(gap, td, min(col_fracs) * width)
+        gm = free_edge_gap(gap, td, min(col_fracs) * width, cap=FRIDGE_MAX_GAP)
         gaps = (gm / 2, gm / 2, gap / 2, gap / 2)
         movable.append(door_part(ops[0][0], "left", gaps, dispenser=s.flag("dispenser", 0.7)))
         movable.append(door_part(ops[1][0], "right", gaps))
@@ -1012,7 +1015,7 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
         top = ops[0][0]
         lo, hi = overlay_front(top, td, gap, g)
         ym = (lo[1] + hi[1]) / 2
-        gm = free_edge_gap(gap, td, (hi[1] - lo[1]) / 2)
+        gm = free_edge_gap(gap, td, (hi[1] - lo[1]) / 2, cap=FRIDGE_MAX_GAP)
         for side, y0, y1 in (("left", top.y0, ym - gm / 2), ("right", ym + gm / 2, top.y1)):
             half = Opening(
                 y0,
