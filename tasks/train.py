@@ -901,15 +901,6 @@ def train(args: Args) -> dict[str, Any]:
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
-    out = Path(args.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    set_torch_threads(args.torch_threads)
-    ckpt = Checkpoint(out / "checkpoint")
-    resuming = args.resume and ckpt.exists()
-    if resuming and (out / "args.json").is_file():
-        # a run started before the robot-frame observations goes on without them
-        saved = json.loads((out / "args.json").read_text())
-        args = replace(args, robot_frame_obs=bool(saved.get("robot_frame_obs", False)))
     if args.n_steps < 1 or args.n_steps * args.num_envs < 2:
         raise TrainingArgsError(
             f"--n-steps {args.n_steps} with --num-envs {args.num_envs}: PPO's rollout needs "
@@ -919,6 +910,15 @@ def train(args: Args) -> dict[str, Any]:
         raise TrainingArgsError(
             f"--batch-size {args.batch_size}: PPO's minibatches need at least 2"
         )
+    out = Path(args.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    set_torch_threads(args.torch_threads)
+    ckpt = Checkpoint(out / "checkpoint")
+    resuming = args.resume and ckpt.exists()
+    if resuming and (out / "args.json").is_file():
+        # a run started before the robot-frame observations goes on without them
+        saved = json.loads((out / "args.json").read_text())
+        args = replace(args, robot_frame_obs=bool(saved.get("robot_frame_obs", False)))
     needs = "it needs --demo-episodes N or --demos-from FILE"
     if args.anchor_batches > 0 and not args.clones_teacher and not resuming:
         raise TrainingArgsError(f"--anchor-batches keeps PPO near a clone: {needs}")
