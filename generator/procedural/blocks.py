@@ -390,11 +390,14 @@ def overlay_front(
     return lo, hi
 
 
-def free_edge_gap(gap: float, thickness: float, width: float, cap: float = MAX_GAP) -> float:
+def free_edge_gap(
+    gap: float, thickness: float, width: float, cap: float = MAX_GAP, margin: float = 5e-4
+) -> float:
     """Clearance (m) on a hinged panel's free side: at least ``gap`` and enough for the
     panel's back corner, which swings out by thickness^2 / (2 width) near the front plane,
-    up to ``cap`` (a thick fridge door of half a fridge's width needs 5-7 mm)."""
-    return float(min(cap, max(gap, thickness**2 / (2 * width) + 5e-4)))
+    plus ``margin``, up to ``cap`` (a thick fridge door of half a fridge's width needs
+    5-7 mm)."""
+    return float(min(cap, max(gap, thickness**2 / (2 * width) + margin)))
 
 
 @dataclass(frozen=True)
