@@ -429,7 +429,7 @@ def test_realistic_thin_vent_grille_builds() -> None:
 def test_realistic_double_fridge_doors_clear_each_other_as_they_start_to_open() -> None:
     """A side-by-side or French-door fridge's doors are 4-7 cm thick: as one starts to
     open, its free edge's back corner swings toward the other door by up to
-    thickness^2 / (2 width), 5-7 mm, before it moves away. The gap between them leaves
+    thickness^2 / (2 width), 2-7 mm, before it moves away. The gap between them leaves
     room for it: no overlap with the other door at the small angles where that happens."""
     from generator.procedural.realistic import sample_realistic_object
 

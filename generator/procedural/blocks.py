@@ -395,8 +395,8 @@ def free_edge_gap(
 ) -> float:
     """Clearance (m) on a hinged panel's free side: at least ``gap`` and enough for the
     panel's back corner, which swings out by thickness^2 / (2 width) near the front plane,
-    plus ``margin``, up to ``cap`` (a thick fridge door of half a fridge's width needs
-    5-7 mm)."""
+    plus ``margin``, up to ``cap`` (the 4-7 cm door of half a fridge's width swings
+    2-7 mm)."""
     return float(min(cap, max(gap, thickness**2 / (2 * width) + margin)))
 
 
