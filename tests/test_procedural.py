@@ -468,3 +468,46 @@ def test_a_realistic_side_by_side_fridge_validates_in_sapien(tmp_path) -> None:
     drives = report.check("drive_reach")
     assert len(drives) == 2 and all(c.passed for c in drives), [c.message for c in drives]
     assert report.ok, report.reasons
+
+
+def _first_hit_x(mesh: trimesh.Trimesh, y: float, z: float) -> float | None:
+    """x of the first surface a ray from the front (+x) at (y, z) meets, going -x."""
+    hits, _, _ = mesh.ray.intersects_location([[5.0, y, z]], [[-1.0, 0.0, 0.0]])
+    return float(hits[:, 0].max()) if len(hits) else None
+
+
+def test_realistic_pedestal_desk_can_stand_on_open_shelves() -> None:
+    """A pedestal of open shelves under a shallow drawer (a real desk's look the parser
+    read as drawers): the shelves stay part of the base, a ray into them from the front
+    reaches the back of the pedestal, and the drawer is the only movable part."""
+    from generator.procedural.realistic import sample_realistic_object
+
+    obj = sample_realistic_object("desk", 76)
+    p = obj.provenance["params"]
+    assert p["kind"] == "pedestal" and p["left_layout"] == "shelves" and "right_layout" not in p
+    assert [m.semantic for m in obj.movable_parts] == ["drawer"]
+    cy = -(p["width"] / 2 - p["overhang_side"] - p["pedestal_w"] / 2)
+    cy = -cy if p["mirror"] else cy
+    base = obj.parts[0].mesh
+    front = p["depth"] / 2 - p["overhang_front"]
+    drawer_lo = obj.movable_parts[0].mesh.bounds[0][2]
+    for z in (0.25 * drawer_lo, 0.7 * drawer_lo):  # the two cubbies under the drawer
+        x = _first_hit_x(base, cy, z)
+        assert x is not None and x < front - 0.3, (z, x, front)
+
+
+def test_realistic_fridge_can_have_a_tall_fixed_grille_panel() -> None:
+    """Some fridges stand on a 10-20 cm grille panel across their width (a real fridge's
+    look the parser read as a drawer): it is the base's, flush with the carcass front,
+    and every door starts above it."""
+    from generator.procedural.realistic import sample_realistic_object
+
+    obj = sample_realistic_object("refrigerator", 2)
+    p = obj.provenance["params"]
+    assert p["grille_panel"] and 0.1 <= p["grille_panel_h"] <= 0.2
+    h, front = p["grille_panel_h"], p["depth"] / 2
+    for y in (-0.2, 0.0, 0.2):
+        x = _first_hit_x(obj.parts[0].mesh, y, h / 2)
+        assert x is not None and abs(x - front) < 0.005, (y, x, front)
+    assert min(m.mesh.bounds[0][2] for m in obj.movable_parts) >= h - 0.005
+    assert not _real("refrigerator", 0).provenance["params"]["grille_panel"]

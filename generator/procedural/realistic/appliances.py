@@ -19,7 +19,8 @@ refrigerator
     ``single``, ``top_freezer``, ``bottom_freezer`` (a freezer drawer or door),
     ``french`` (two doors over one or two freezer drawers), ``side_by_side`` (a
     dispenser on the freezer door) and ``mini`` (a small fridge or a glass-door
-    beverage cooler); long vertical bars, lips or pockets; a grille at the bottom.
+    beverage cooler); long vertical bars, lips or pockets; a grille at the bottom,
+    sometimes on a tall panel that looks like a drawer front.
 washing_machine
     ``front`` loaders (a round side-hinged door with a chrome or plastic ring and a
     glass bowl, a detergent drawer, a program knob and a display) and ``top`` loaders
@@ -884,6 +885,11 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     plinth = (
         s.uniform("plinth_h", 0.04, 0.1) if kind != "mini" else s.uniform("mini_plinth", 0.01, 0.04)
     )
+    # a tall grille panel across the bottom (older and commercial fridges): a fixed front
+    # that reads like a drawer's
+    grille_panel = kind != "mini" and s.flag("grille_panel", 0.3)
+    if grille_panel:
+        plinth = s.uniform("grille_panel_h", 0.1, 0.2)
     freezer = s.uniform("freezer_frac", 0.26, 0.34)
     if kind == "side_by_side":
         col_fracs, row_fracs = [s.uniform("freezer_w", 0.4, 0.48), 1.0], [[1.0], [1.0]]
@@ -912,14 +918,23 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     base.add(prims)
     rng = s.child_rng()
     # the grille in the plinth and shelves inside
+    if grille_panel:  # a panel over the plinth's width, in the body's finish or dark plastic
+        colour = looks.tint((38, 38, 40), rng, 0.2) if s.flag("grille_panel_dark", 0.5) else None
+        base.add(
+            box(
+                [depth / 2 - 0.03, -width / 2 + 0.005, 0.005],
+                [depth / 2, width / 2 - 0.005, plinth - 0.004],
+            ),
+            colour if colour else 0,
+        )
     if kind != "mini":
         base.add(
             shapes.slots(
                 -width / 2 + 0.03,
                 width / 2 - 0.03,
-                0.01,
-                plinth - 0.01,
-                depth / 2 - 0.01,
+                0.01 if not grille_panel else 0.3 * plinth,
+                plinth - 0.01 if not grille_panel else 0.75 * plinth,
+                depth / 2 - 0.01 if not grille_panel else depth / 2,
                 s.integer("grille_slots", 3, 6),
                 False,
             ),

@@ -719,7 +719,8 @@ def coffee(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
 
 def pedestal(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     """An office or writing desk: a top on one or two pedestals of drawers (or a door and
-    a drawer), legs or an end panel under the free end, sometimes a centre drawer."""
+    a drawer, or a drawer over open shelves), legs or an end panel under the free end,
+    sometimes a centre drawer."""
     width = s.uniform("width", 1.0, 1.8)
     depth = s.uniform("depth", 0.55, 0.8)
     height = s.uniform("height", 0.72, 0.77)
@@ -740,8 +741,16 @@ def pedestal(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
     ped_w = s.uniform("pedestal_w", 0.36, 0.48)
     for side in sides:
         cy = (width / 2 - ov_s - ped_w / 2) * (1 if side == "right" else -1)
-        layout = s.choice(f"{side}_layout", ("drawers", "drawer_door", "file"), p=(0.6, 0.25, 0.15))
-        if layout == "drawers":
+        layout = s.choice(
+            f"{side}_layout",
+            ("drawers", "drawer_door", "file", "drawer_open", "shelves"),
+            p=(0.45, 0.2, 0.1, 0.15, 0.1),
+        )
+        if layout == "drawer_open":  # a drawer over an open cubby
+            cells = [Cell("drawer", 1.0), Cell("open", s.uniform(f"{side}_open_frac", 1.5, 2.5))]
+        elif layout == "shelves":  # a shallow drawer over open shelves
+            cells = [Cell("drawer", 0.6), Cell("open", 1.0), Cell("open", 1.0)]
+        elif layout == "drawers":
             cells = _drawer_stack(
                 s.integer(f"{side}_n", 2, 4), s.uniform(f"{side}_grading", 0.0, 0.5)
             )
