@@ -14,7 +14,8 @@ runs as the policy, in the episodes the shipped policies are measured in (10 Hz
 ``pd_ee_delta_pos``, the task's length, episode k seeded ``--seed + k``, no action
 noise): what a clone of it could reach at best.
 
-    python bench/policy_eval.py teacher --task OpenDoor-v0 --assets realA=REAL_DEV
+    python bench/policy_eval.py teacher --task OpenDoor-v0 --assets realA=REAL_DEV \
+        [--teacher-set door_pull=0.02]     # OpeningTeacher's fields set otherwise
 """
 
 from __future__ import annotations
@@ -25,8 +26,11 @@ import time
 from typing import Any
 
 
-def run_teacher(task: str, assets: str, episodes: int, seed: int) -> dict[str, Any]:
-    """``tasks.train.evaluate``'s figures for the scripted teacher."""
+def run_teacher(
+    task: str, assets: str, episodes: int, seed: int, settings: dict[str, float] | None = None
+) -> dict[str, Any]:
+    """``tasks.train.evaluate``'s figures for the scripted teacher (``settings``: fields of
+    ``OpeningTeacher`` set otherwise than their defaults)."""
     import numpy as np
 
     from tasks.teacher import OpeningTeacher
@@ -40,7 +44,7 @@ def run_teacher(task: str, assets: str, episodes: int, seed: int) -> dict[str, A
     try:
         for k in range(episodes):
             env.reset(seed=seed + k)
-            teacher, done, info, held = OpeningTeacher(), False, {}, False
+            teacher, done, info, held = OpeningTeacher(**(settings or {})), False, {}, False
             while not done:
                 _, _, term, trunc, info = env.step(teacher(env))
                 held = held or bool(info.get("is_grasped", False))
@@ -66,6 +70,7 @@ def run_teacher(task: str, assets: str, episodes: int, seed: int) -> dict[str, A
 
 
 def main() -> None:
+    from tasks.teacher import OpeningTeacher
     from tasks.train import evaluate
 
     ap = argparse.ArgumentParser()
@@ -76,7 +81,20 @@ def main() -> None:
     )
     ap.add_argument("--episodes", type=int, default=50)
     ap.add_argument("--seed", type=int, default=10_000)
+    ap.add_argument(
+        "--teacher-set",
+        nargs="+",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="with 'teacher': OpeningTeacher fields to set (e.g. door_pull=0.02)",
+    )
     a = ap.parse_args()
+    settings = {}
+    for item in a.teacher_set:
+        field, _, value = item.partition("=")
+        if a.policy != "teacher" or field not in OpeningTeacher.__dataclass_fields__ or not value:
+            raise SystemExit(f"--teacher-set {item!r}: expected FIELD=VALUE of OpeningTeacher")
+        settings[field] = type(getattr(OpeningTeacher, field))(value)
     sets = {}
     for item in a.assets:
         name, _, folder = item.partition("=")
@@ -84,7 +102,7 @@ def main() -> None:
             raise SystemExit(f"--assets {item!r}: expected NAME=FOLDER")
         t0 = time.time()
         if a.policy == "teacher":
-            r = run_teacher(a.task, folder, a.episodes, a.seed)
+            r = run_teacher(a.task, folder, a.episodes, a.seed, settings)
         else:
             r = evaluate(a.policy, a.task, folder, episodes=a.episodes, seed=a.seed)
         sets[name] = {
@@ -98,7 +116,14 @@ def main() -> None:
         }
     print(
         json.dumps(
-            {"bench": "policy_eval", "policy": a.policy, "task": a.task, "sets": sets}, indent=2
+            {
+                "bench": "policy_eval",
+                "policy": a.policy,
+                "task": a.task,
+                **({"teacher_settings": settings} if settings else {}),
+                "sets": sets,
+            },
+            indent=2,
         )
     )
 
