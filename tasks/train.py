@@ -781,10 +781,13 @@ def _collect_corrections(
 
 
 def _teacher_env(args: Args) -> gym.Env:
+    """The env the teacher's episodes run in: the training assets, one per episode, with
+    the training envs' physics randomization (so a clone also sees heavy doors' states)."""
     return make_cpu_env(
         args.env_id, args.assets, category=args.category, control_mode=args.control_mode,
         sim_config={"control_freq": args.control_freq}, reconfiguration_freq=1,
         robot_frame_obs=args.robot_frame_obs,
+        physics_randomization=physics_randomization(args),
         **eval_episode_steps(args.env_id, None, args.control_freq),
     )  # fmt: skip
 

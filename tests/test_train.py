@@ -402,3 +402,22 @@ def test_pact_train_refuses_a_rollout_or_minibatch_ppo_cannot_use(
     assert res.exit_code != 0
     assert message in res.output
     assert not run.exists()
+
+
+def test_teacher_episodes_run_with_the_training_physics_randomization(
+    procedural_assets: Path,
+) -> None:
+    """With --randomize-physics the teacher's episodes (what a clone learns from) load the
+    parts with scaled masses too, as the PPO envs do; without it, the assets' own."""
+    from tasks.train import Args, _teacher_env
+
+    for randomize in (False, True):
+        env = _teacher_env(
+            Args(env_id="OpenDoor-v0", assets=str(procedural_assets), randomize_physics=randomize)
+        )
+        try:
+            env.reset(seed=5)
+            scales = env.unwrapped.physics_scales[0].cpu().numpy()
+        finally:
+            env.close()
+        assert (not np.allclose(scales, 1.0)) == randomize, (randomize, scales)
