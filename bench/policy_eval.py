@@ -92,9 +92,14 @@ def main() -> None:
     settings = {}
     for item in a.teacher_set:
         field, _, value = item.partition("=")
-        if a.policy != "teacher" or field not in OpeningTeacher.__dataclass_fields__ or not value:
-            raise SystemExit(f"--teacher-set {item!r}: expected FIELD=VALUE of OpeningTeacher")
-        settings[field] = type(getattr(OpeningTeacher, field))(value)
+        try:
+            if a.policy != "teacher" or field not in OpeningTeacher.__dataclass_fields__:
+                raise ValueError
+            settings[field] = type(getattr(OpeningTeacher, field))(value)
+        except ValueError:
+            raise SystemExit(
+                f"--teacher-set {item!r}: expected FIELD=VALUE of OpeningTeacher"
+            ) from None
     sets = {}
     for item in a.assets:
         name, _, folder = item.partition("=")

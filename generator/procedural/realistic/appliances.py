@@ -925,7 +925,7 @@ def refrigerator(s: ParamSampler) -> tuple[PartSpec, list[PartSpec]]:
                 [depth / 2 - 0.03, -width / 2 + 0.005, 0.005],
                 [depth / 2, width / 2 - 0.005, plinth - 0.004],
             ),
-            colour if colour else 0,
+            colour or 0,
         )
     if kind != "mini":
         base.add(
