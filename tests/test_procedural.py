@@ -470,6 +470,29 @@ def test_a_realistic_side_by_side_fridge_validates_in_sapien(tmp_path) -> None:
     assert report.ok, report.reasons
 
 
+def test_a_realistic_french_door_fridges_freezer_drawer_closes_in_sapien(tmp_path) -> None:
+    """A French-door fridge's freezer drawer, driven open and shut in SAPIEN
+    (drive_reach), closes: with the 2-4 mm gap of the other fronts between it and the
+    doors above, the closing front met the doors' bottom edge and jammed 6 cm out."""
+    from asset_pipeline.assets.build import build_asset
+    from asset_pipeline.validate import validate_asset
+    from generator.bundle import save_bundle
+    from generator.procedural.realistic import sample_realistic_object
+    from generator.procedural.realistic.appliances import FRIDGE_DRAWER_GAP
+
+    obj = sample_realistic_object("refrigerator", 4)
+    assert obj.provenance["params"]["kind"] == "french"
+    doors = [p for p in obj.movable_parts if p.semantic == "door"]
+    drawer = next(p for p in obj.movable_parts if p.semantic == "drawer")
+    gap = min(d.mesh.bounds[0][2] for d in doors) - drawer.mesh.bounds[1][2]
+    assert gap >= FRIDGE_DRAWER_GAP - 1e-6, gap
+    folder = save_bundle(obj, tmp_path / "fridge")
+    build_asset(folder)
+    report = validate_asset(folder, preview=False, repair=False)
+    drive = next(c for c in report.check("drive_reach") if "drawer" in c.subject)
+    assert drive.passed, drive.message
+
+
 def _first_hit_x(mesh: trimesh.Trimesh, y: float, z: float) -> float | None:
     """x of the first surface a ray from the front (+x) at (y, z) meets, going -x."""
     hits, _, _ = mesh.ray.intersects_location([[5.0, y, z]], [[-1.0, 0.0, 0.0]])
